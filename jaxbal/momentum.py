@@ -1,0 +1,116 @@
+"""Centre of mass, momentum and the shaking wrench -- the physics shared by all robots.
+
+The shaking wrench is computed *exactly* as minus the time derivative of the total
+linear momentum ``p`` and of the total angular momentum ``L`` (about the base
+origin) of every moving body, obtained by forward-mode automatic differentiation:
+
+    d/dt p(q, q̇) = ∂p/∂q · q̇ + ∂p/∂q̇ · q̈      (one ``jax.jvp``)
+
+No finite differences are involved, and nothing here is robot-specific: a robot only
+supplies :meth:`~jaxbal.robot.Robot.mass_properties` and
+:meth:`~jaxbal.robot.Robot.body_frames`.
+
+References:
+    Briot, Arakelian & Le Baron (2012), eq (1): f_sh = Σ m_i · ẍ_S.
+    van der Wijk et al. (2013), eqs (1)-(2) (linear momentum of the DUAL-V).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from jaxbal.robot import Robot
+from jaxbal.types import Coordinates, Scalar, Vec3
+
+
+def total_mass(robot: Robot) -> Scalar:
+    """Total mass of all moving bodies (payload, counter-masses included) [kg]."""
+    return jnp.sum(robot.mass_properties().mass)
+
+
+def body_com_positions(robot: Robot, q: Coordinates):
+    """``(n, 3)`` positions of every body's centre of mass in the base frame [m]."""
+    bodies = robot.mass_properties()
+    origins, rotations = robot.body_frames(q)
+    return origins + jnp.einsum("nij,nj->ni", rotations, bodies.com)
+
+
+def center_of_mass(robot: Robot, q: Coordinates) -> Vec3:
+    """Total centre of mass x_S of the moving bodies, base frame [m].
+
+    References:
+        Briot et al. (2012), eq (7).
+    """
+    bodies = robot.mass_properties()
+    positions = body_com_positions(robot, q)
+    mass = jnp.sum(bodies.mass)
+    return jnp.einsum("n,ni->i", bodies.mass, positions) / jnp.maximum(mass, 1e-300)
+
+
+def _vee(skew):
+    return jnp.stack([skew[..., 2, 1], skew[..., 0, 2], skew[..., 1, 0]], -1)
+
+
+def momentum(robot: Robot, q: Coordinates, qd: Coordinates) -> tuple[Vec3, Vec3]:
+    """Total linear momentum ``p`` [kg·m/s] and angular momentum ``L`` about the base
+    origin [kg·m²/s] of all moving bodies, base frame.
+
+    ``L = Σ m_i c_i × v_i + R_i I_i R_iᵀ ω_i`` with ``ω_i = vee(Ṙ_i R_iᵀ)``.
+    """
+    bodies = robot.mass_properties()
+
+    def poses(q_):
+        origins, rotations = robot.body_frames(q_)
+        return origins + jnp.einsum("nij,nj->ni", rotations, bodies.com), rotations
+
+    (positions, rotations), (velocities, rotation_rates) = jax.jvp(poses, (q,), (qd,))
+    omega = _vee(jnp.einsum("nij,nkj->nik", rotation_rates, rotations))
+    linear = jnp.einsum("n,ni->i", bodies.mass, velocities)
+    inertia_world = jnp.einsum("nij,njk,nlk->nil", rotations, bodies.inertia, rotations)
+    spin = jnp.einsum("nij,nj->i", inertia_world, omega)
+    orbital = jnp.sum(bodies.mass[:, None] * jnp.cross(positions, velocities), axis=0)
+    return linear, orbital + spin
+
+
+def shaking_wrench(
+    robot: Robot,
+    q: Coordinates,
+    qd: Coordinates,
+    qdd: Coordinates,
+    gravity: Vec3 | None = None,
+) -> tuple[Vec3, Vec3]:
+    """Force and moment the moving robot exerts on its base (the shaking wrench).
+
+    Sign convention: this is the wrench applied *by the robot on the base*, about the
+    base origin, in the base frame:
+
+        f_sh = -dp/dt + m_tot·g,     m_sh = -dL/dt + Σ m_i c_i × g
+
+    where ``p`` and ``L`` are from :func:`momentum`. With the default ``gravity=None``
+    only the inertial (dynamic) part is returned, as in the papers; e.g. f_sh =
+    -m_tot·ẍ_S. Planar robots give ``f[2] = 0`` and a moment along z.
+
+    Args:
+        robot: any :class:`~jaxbal.robot.Robot`.
+        q, qd, qdd: ``(dof,)`` coordinates and their first two time derivatives
+            (SI units of the robot's coordinates: rad or m, per s, per s²).
+        gravity: optional ``(3,)`` gravitational acceleration [m/s²], e.g.
+            ``(0, 0, -9.81)``.
+
+    Returns:
+        ``(force (3,) [N], moment (3,) [N·m])``. One sample; batch with ``jax.vmap``.
+
+    References:
+        Briot et al. (2012), eq (1); van der Wijk et al. (2013), section 2.
+    """
+    q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
+    _, (dp, dl) = jax.jvp(lambda q_, qd_: momentum(robot, q_, qd_), (q, qd), (qd, qdd))
+    force, moment = -dp, -dl
+    if gravity is not None:
+        g = jnp.asarray(gravity, dtype=float)
+        bodies = robot.mass_properties()
+        positions = body_com_positions(robot, q)
+        force = force + jnp.sum(bodies.mass) * g
+        moment = moment + jnp.sum(bodies.mass[:, None] * jnp.cross(positions, g), axis=0)
+    return force, moment

@@ -1,0 +1,72 @@
+"""Trajectories ``t ↦ q(t)`` and their exact time derivatives.
+
+A trajectory is any callable from time [s] to coordinates; the concrete ones are
+:class:`equinox.Module` pytrees (so their parameters -- endpoints, profile
+coefficients, duration, the robot itself -- are differentiable). Velocities,
+accelerations and jerks are obtained by nested forward-mode differentiation in time,
+never by finite differences.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from jaxbal.profiles import Profile
+from jaxbal.types import Array, Float, ScalarLike
+
+
+def time_derivatives(path: Callable, t: ScalarLike, order: int = 2) -> tuple:
+    """``(x(t), ẋ(t), …, x⁽ᵒʳᵈᵉʳ⁾(t))`` of any differentiable ``path`` by nested ``jvp``."""
+    t = jnp.asarray(t, dtype=float)
+
+    def nth(k):
+        if k == 0:
+            return path
+        lower = nth(k - 1)
+        return lambda s: jax.jvp(lower, (s,), (jnp.ones_like(s),))[1]
+
+    return tuple(nth(k)(t) for k in range(order + 1))
+
+
+def sample(path: Callable, times: Float[Array, " t"], order: int = 2) -> tuple:
+    """:func:`time_derivatives` at every time of ``times`` (vectorised with ``vmap``)."""
+    return jax.vmap(lambda t: time_derivatives(path, t, order))(jnp.asarray(times, dtype=float))
+
+
+def sample_times(duration: ScalarLike, count: int = 1001) -> Float[Array, " t"]:
+    """``count`` equally spaced instants on ``[0, duration]`` [s], both ends included."""
+    return jnp.linspace(0.0, 1.0, count) * jnp.asarray(duration, dtype=float)
+
+
+class StraightLine(eqx.Module):
+    """A straight-line move ``x(t) = x0 + s(t/T)·(x1 − x0)`` with a motion profile.
+
+    Attributes:
+        start, end: ``(k,)`` endpoints (any units: m for points, rad for angles).
+        profile: a :class:`~jaxbal.profiles.Profile`.
+        duration: ``T`` [s].
+
+    References:
+        Briot et al. (2012), eqs (2a)-(3).
+    """
+
+    start: Float[Array, " k"]
+    end: Float[Array, " k"]
+    profile: Profile
+    duration: Float[Array, ""]
+
+    def __init__(self, start, end, profile: Profile, duration: ScalarLike):
+        self.start = jnp.atleast_1d(jnp.asarray(start, dtype=float))
+        self.end = jnp.atleast_1d(jnp.asarray(end, dtype=float))
+        self.profile = profile
+        self.duration = jnp.asarray(duration, dtype=float)
+        if self.start.shape != self.end.shape:
+            raise ValueError(f"start {self.start.shape} and end {self.end.shape} differ in shape")
+
+    def __call__(self, t: ScalarLike) -> Float[Array, " k"]:
+        u = jnp.asarray(t, dtype=float) / self.duration
+        return self.start + self.profile(u) * (self.end - self.start)
