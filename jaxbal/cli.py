@@ -1,0 +1,37 @@
+"""The ``jaxbal`` command line (typer)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+app = typer.Typer(help="jaxbal: dynamic balancing of high-speed robots in JAX.", no_args_is_help=True)
+
+
+@app.command()
+def reproduce(
+    only: str = typer.Option(None, "--only", help="run only experiments whose name contains this"),
+    out: Path = typer.Option(Path("results"), "--out", help="output folder"),
+    readme: Path = typer.Option(
+        Path("README.md"), "--readme", help="README whose results table is refreshed"
+    ),
+):
+    """Reproduce the papers' tables and figures into OUT (CSV, PNG, REPORT.md)."""
+    from jaxbal.reproduce import run_all
+
+    results = run_all(out, only=only, update_readme=readme)
+    typer.echo(f"{len(results)} experiment(s) written to {out}/ (see {out}/REPORT.md)")
+
+
+@app.command("list")
+def list_experiments():
+    """List the experiments that ``reproduce`` runs."""
+    from jaxbal.reproduce import discover
+
+    for experiment in discover():
+        typer.echo(f"{experiment.name:28s} {experiment.title}")
+
+
+if __name__ == "__main__":
+    app()

@@ -1,0 +1,75 @@
+"""Discover and run the experiments of ``experiments/``; write CSVs, PNGs and REPORT.md.
+
+An experiment is a Python file in ``experiments/`` defining ``EXPERIMENT``, an
+:class:`jaxbal.report.Experiment`. Experiments are thin: parameters, calls into
+jaxbal, a table and a plot.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+from pathlib import Path
+
+from tqdm.auto import tqdm
+
+from jaxbal.report import Context, Experiment, atomic_write_text, render_report, render_summary
+
+README_START = "<!-- results:start -->"
+README_END = "<!-- results:end -->"
+
+
+def experiments_dir() -> Path:
+    """The repository's ``experiments/`` folder (next to the ``jaxbal`` package)."""
+    here = Path(__file__).resolve().parent.parent / "experiments"
+    if here.is_dir():
+        return here
+    cwd = Path.cwd() / "experiments"
+    if cwd.is_dir():
+        return cwd
+    raise FileNotFoundError("no experiments/ folder next to jaxbal or in the current directory")
+
+
+def discover(folder: Path | None = None) -> list[Experiment]:
+    """All experiments, sorted by file name."""
+    folder = folder or experiments_dir()
+    found = []
+    for path in sorted(folder.glob("*.py")):
+        if path.name.startswith("_"):
+            continue
+        spec = importlib.util.spec_from_file_location(f"jaxbal_experiments.{path.stem}", path)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        experiment = getattr(module, "EXPERIMENT", None)
+        if isinstance(experiment, Experiment):
+            found.append(experiment)
+    return found
+
+
+def run_all(out: Path, only: str | None = None, update_readme: Path | None = None):
+    """Run the experiments (those whose name contains ``only``, if given) into ``out``."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    experiments = [e for e in discover() if only is None or only in e.name]
+    if not experiments:
+        raise ValueError(f"no experiment matches {only!r}")
+    results = []
+    with tqdm(total=len(experiments), desc="reproduce", unit="exp") as bar:
+        for experiment in experiments:
+            bar.set_postfix_str(experiment.name)
+            context = Context(out=out, progress=lambda msg: bar.set_postfix_str(msg))
+            result = experiment.run(context)
+            for table in result.tables:
+                atomic_write_text(out / f"{table.id}.csv", table.to_csv())
+            results.append((experiment, result))
+            bar.update(1)
+    atomic_write_text(out / "REPORT.md", render_report(results))
+    summary = render_summary(results)
+    atomic_write_text(out / "SUMMARY.md", summary + "\n")
+    if update_readme is not None and only is None and Path(update_readme).exists():
+        text = Path(update_readme).read_text()
+        pattern = re.compile(re.escape(README_START) + ".*?" + re.escape(README_END), re.S)
+        if pattern.search(text):
+            block = f"{README_START}\n{summary}\n{README_END}"
+            atomic_write_text(Path(update_readme), pattern.sub(lambda _: block, text))
+    return results
