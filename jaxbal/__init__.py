@@ -3,8 +3,11 @@
 Importing jaxbal enables float64 in JAX (see :mod:`jaxbal._config`).
 """
 
-from jaxbal import _config  # noqa: F401  (enables float64 once)
-from jaxbal import profiles, robots
+from jaxbal import (
+    _config,  # noqa: F401  (enables float64 once)
+    profiles,
+    robots,
+)
 from jaxbal.dynamics import (
     inverse_dynamics,
     inverse_dynamics_rate,

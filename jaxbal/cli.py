@@ -6,7 +6,9 @@ from pathlib import Path
 
 import typer
 
-app = typer.Typer(help="jaxbal: dynamic balancing of high-speed robots in JAX.", no_args_is_help=True)
+app = typer.Typer(
+    help="jaxbal: dynamic balancing of high-speed robots in JAX.", no_args_is_help=True
+)
 
 
 @app.command()

@@ -21,7 +21,7 @@ import jax.numpy as jnp
 
 from jaxbal.momentum import _vee, body_com_positions
 from jaxbal.robot import Robot
-from jaxbal.types import Coordinates, Float, Array, Scalar, Vec3
+from jaxbal.types import Array, Coordinates, Float, Scalar, Vec3
 
 
 def kinetic_energy(robot: Robot, q: Coordinates, qd: Coordinates) -> Scalar:

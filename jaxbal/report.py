@@ -94,7 +94,7 @@ class Table:
 
     def to_markdown(self) -> str:
         rows = [
-            f"| row | column | ours | paper | rel. diff | unit |",
+            "| row | column | ours | paper | rel. diff | unit |",
             "|---|---|---:|---:|---:|---|",
         ]
         for e in self.entries:

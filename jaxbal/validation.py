@@ -38,7 +38,9 @@ def check_shape(name: str, value, shape: tuple[int | None, ...]) -> None:
     ``None`` in ``shape`` matches any size along that axis.
     """
     actual = jnp.shape(value)
-    ok = len(actual) == len(shape) and all(s is None or s == a for s, a in zip(shape, actual))
+    ok = len(actual) == len(shape) and all(
+        s is None or s == a for s, a in zip(shape, actual, strict=False)
+    )
     if not ok:
         raise ValueError(f"{name} must have shape {shape}, got {actual}")
 

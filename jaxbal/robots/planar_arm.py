@@ -29,7 +29,6 @@ References:
 
 from __future__ import annotations
 
-import equinox as eqx
 import jax.numpy as jnp
 
 from jaxbal.robot import Bodies, Robot, concatenate, planar_inertia, point_masses, rot_z
@@ -85,7 +84,9 @@ class PlanarArm(Robot):
         self.inertias = jnp.asarray(inertias, dtype=float)
         self.payload = jnp.asarray(payload, dtype=float)
         zeros = jnp.zeros(n)
-        self.counter_masses = zeros if counter_masses is None else jnp.asarray(counter_masses, float)
+        self.counter_masses = (
+            zeros if counter_masses is None else jnp.asarray(counter_masses, float)
+        )
         self.counter_distances = (
             zeros if counter_distances is None else jnp.asarray(counter_distances, float)
         )
@@ -109,9 +110,7 @@ class PlanarArm(Robot):
         n = self.n_links
         links = Bodies(
             mass=self.masses,
-            com=jnp.stack(
-                [self.com_ratios * self.lengths, jnp.zeros(n), jnp.zeros(n)], axis=-1
-            ),
+            com=jnp.stack([self.com_ratios * self.lengths, jnp.zeros(n), jnp.zeros(n)], axis=-1),
             inertia=planar_inertia(self.inertias),
             names=tuple(f"link{k + 1}" for k in range(n)),
         )
