@@ -41,55 +41,68 @@ class Solution(NamedTuple):
     history: jax.Array
 
 
+_DEFAULT_OPTIMIZER = optax.lbfgs()
+
+
 def minimize(
-    loss: Callable[[Any], jax.Array],
+    loss: Callable[..., jax.Array],
     params: Any,
     optimizer: optax.GradientTransformation | None = None,
     max_steps: int = 200,
     gtol: float = 1e-12,
+    args: tuple = (),
 ) -> Solution:
-    """Minimise ``loss(params)`` (jit-compiled ``lax.while_loop``).
+    """Minimise ``loss(params, *args)`` (jit-compiled ``lax.while_loop``).
+
+    The compiled loop is cached on ``(loss, optimizer, max_steps, gtol)`` and the
+    *structure* of ``params`` and ``args``: calling again with new values (another
+    path, another robot of the same kind) does not recompile, provided ``loss`` and
+    ``optimizer`` are the same Python objects (define them once, at module level).
 
     Args:
-        loss: scalar function of a pytree of float arrays.
+        loss: scalar function of a pytree of float arrays (and of ``args``).
         params: starting point.
         optimizer: an optax transformation; default ``optax.lbfgs()``.
         max_steps: iteration cap.
         gtol: stop when the gradient norm falls below this.
+        args: extra pytree arguments of ``loss`` (data; not optimised).
     """
-    optimizer = optax.lbfgs() if optimizer is None else optimizer
-    value_and_grad = optax.value_and_grad_from_state(loss) if _is_lbfgs(optimizer) else None
+    optimizer = _DEFAULT_OPTIMIZER if optimizer is None else optimizer
+    return _run(loss, optimizer, _is_lbfgs(optimizer), max_steps, gtol, params, args)
 
-    @eqx.filter_jit
-    def run(params):
-        state = optimizer.init(params)
-        history = jnp.full((max_steps,), jnp.nan)
 
-        def cond(carry):
-            _, _, step, grad_norm, _ = carry
-            return (step < max_steps) & (grad_norm > gtol)
+@eqx.filter_jit
+def _run(loss, optimizer, lbfgs: bool, max_steps: int, gtol: float, params, args):
+    def objective(p):
+        return loss(p, *args)
 
-        def body(carry):
-            params, state, step, _, history = carry
-            if value_and_grad is not None:
-                value, grad = value_and_grad(params, state=state)
-                updates, state = optimizer.update(
-                    grad, state, params, value=value, grad=grad, value_fn=loss
-                )
-            else:
-                value, grad = jax.value_and_grad(loss)(params)
-                updates, state = optimizer.update(grad, state, params)
-            params = optax.apply_updates(params, updates)
-            history = history.at[step].set(value)
-            return params, state, step + 1, optax.tree.norm(grad), history
+    value_and_grad = optax.value_and_grad_from_state(objective) if lbfgs else None
+    state = optimizer.init(params)
+    history = jnp.full((max_steps,), jnp.nan)
 
-        carry = (params, state, jnp.asarray(0), jnp.asarray(jnp.inf), history)
-        params, state, steps, _, history = jax.lax.while_loop(cond, body, carry)
-        value, grad = jax.value_and_grad(loss)(params)
-        grad_norm = optax.tree.norm(grad)
-        return Solution(params, value, grad_norm, steps, grad_norm <= gtol, history)
+    def cond(carry):
+        _, _, step, grad_norm, _ = carry
+        return (step < max_steps) & (grad_norm > gtol)
 
-    return run(params)
+    def body(carry):
+        params, state, step, _, history = carry
+        if value_and_grad is not None:
+            value, grad = value_and_grad(params, state=state)
+            updates, state = optimizer.update(
+                grad, state, params, value=value, grad=grad, value_fn=objective
+            )
+        else:
+            value, grad = jax.value_and_grad(objective)(params)
+            updates, state = optimizer.update(grad, state, params)
+        params = optax.apply_updates(params, updates)
+        history = history.at[step].set(value)
+        return params, state, step + 1, optax.tree.norm(grad), history
+
+    carry = (params, state, jnp.asarray(0), jnp.asarray(jnp.inf), history)
+    params, state, steps, _, history = jax.lax.while_loop(cond, body, carry)
+    value, grad = jax.value_and_grad(objective)(params)
+    grad_norm = optax.tree.norm(grad)
+    return Solution(params, value, grad_norm, steps, grad_norm <= gtol, history)
 
 
 def _is_lbfgs(optimizer) -> bool:
