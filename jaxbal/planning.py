@@ -110,3 +110,13 @@ def torque_rate_along(
 def peak_norm(vectors: Float[Array, "t 3"]) -> Float[Array, ""]:
     """``max_t ‖v(t)‖`` (e.g. the maximal shaking force of the papers' tables)."""
     return jnp.max(jnp.linalg.norm(vectors, axis=-1))
+
+
+def smooth_peak(values: Float[Array, " t"], temperature: ScalarLike) -> Float[Array, ""]:
+    """Differentiable upper bound of ``max|values|``: ``τ·logsumexp(|v|/τ)``.
+
+    Tends to the maximum as ``temperature τ → 0`` (error ≤ τ·log t); used to optimise
+    trajectory parameters against a peak (e.g. eq 19 of Briot et al. 2012).
+    """
+    magnitude = jnp.abs(values)
+    return temperature * jax.nn.logsumexp(magnitude / temperature)
