@@ -82,12 +82,12 @@ def run(ctx) -> Result:
                 curves[case] = jnp.linalg.norm(forces, axis=-1)
     fig, ax = plt.subplots(figsize=(6, 3.5))
     styles = {
-        "case1": ("k-", "case 1 (quintic, end-effector)"),
-        "case2": ("k--", "case 2 (bang-bang, COM)"),
+        "case1": ("k", "-", "case 1 (quintic, end-effector)"),
+        "case2": ("k", "--", "case 2 (bang-bang, COM)"),
+        "case3": ("0.6", "-", "case 3 (trapezoid, COM, rate-limited)"),
     }
-    styles["case3"] = ("-", "case 3 (trapezoid, COM, rate-limited)")
-    for case, (style, label) in styles.items():
-        ax.plot(times, curves[case], style, label=label, color=None if case != "case3" else "0.6")
+    for case, (color, line, label) in styles.items():
+        ax.plot(times, curves[case], color=color, linestyle=line, label=label)
     ax.set(xlabel="time [s]", ylabel="‖f_sh‖ [N]", title="2R, path P5P9 (cf. Fig 5)")
     ax.legend(fontsize=8)
     figure = save_figure(fig, ctx.figure_path("briot2012_fig5_2r_shaking_force"))
