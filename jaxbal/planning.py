@@ -68,6 +68,18 @@ class ComLine(eqx.Module):
         free = None if self.free is None else self.free(t)
         return self.robot.com_inverse_kinematics(self.line(t), free, self.mode)
 
+    def valid(self, times: Float[Array, " t"]) -> Float[Array, " t"]:
+        """Boolean mask: is the COM target reachable at each time (no exception)."""
+
+        def one(t):
+            free = None if self.free is None else self.free(t)
+            _, ok = self.robot.com_inverse_kinematics(
+                self.line(t), free, self.mode, return_valid=True
+            )
+            return ok
+
+        return jax.vmap(one)(jnp.asarray(times, dtype=float))
+
 
 def com_line(
     robot: Robot,

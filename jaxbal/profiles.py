@@ -119,8 +119,8 @@ class BoundaryPolynomial(Profile):
 
     def __call__(self, u):
         u = jnp.asarray(u, dtype=float)
-        powers = u ** jnp.arange(self.coefficients.shape[0])
-        bump = (u * (1.0 - u)) ** 3 * jnp.sum(self.coefficients * powers)
+        # Horner's scheme: no u**0 whose derivative at u = 0 would be 0·∞ = NaN.
+        bump = (u * (1.0 - u)) ** 3 * jnp.polyval(self.coefficients[::-1], u)
         return Quintic()(u) + bump
 
 

@@ -202,7 +202,8 @@ class PlanarArm(Robot):
 
         Args:
             com: ``(2,)`` or ``(3,)`` target COM [m] (z ignored).
-            free: φ [rad] for the 3R (required), ``None`` for the 2R.
+            free: φ [rad] for the 3R (required; shape ``()`` or ``(1,)``), ``None`` for
+                the 2R.
             mode: ``+1`` or ``−1``.
             return_valid: also return the validity mask (discriminant ≥ 0).
 
@@ -216,7 +217,8 @@ class PlanarArm(Robot):
         if n == 3:
             if free is None:
                 raise ValueError("the 3R COM inverse kinematics needs the free angle φ")
-            target = target - l_eq[2] * _unit(jnp.asarray(free, dtype=float))
+            free = jnp.reshape(jnp.asarray(free, dtype=float), ())
+            target = target - l_eq[2] * _unit(free)
         elif n != 2:
             raise ValueError(f"COM inverse kinematics is implemented for n = 2, 3, got {n}")
         a = -2.0 * l_eq[0] * target[0]
