@@ -34,12 +34,17 @@ from __future__ import annotations
 import functools
 from typing import NamedTuple
 
+import equinox as eqx
+import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
+from mujoco import mjx
 
-from jaxbal.mjcf import BASE_MASS, Tree, robot_tree, to_mjcf, tree_state
+from jaxbal.mjcf import BASE_MASS, Tree, realisable_inertia, robot_tree, to_mjcf, tree_state
+from jaxbal.momentum import shaking_wrench
 from jaxbal.robot import Robot
+from jaxbal.types import Coordinates, Vec3
 from jaxbal.validation import check_shape
 
 
@@ -139,3 +144,203 @@ def mujoco_base_reaction(
         moments.append(moment)
     forces, moments = np.array(forces), np.array(moments)
     return (forces, moments) if batched else (forces[0], moments[0])
+
+
+# --- MJX --------------------------------------------------------------------------------
+
+
+class MjxRobot(eqx.Module):
+    """A robot compiled for MJX, whose mass properties can be swapped in (traced).
+
+    Attributes:
+        model: the ``mjx.Model`` (JAX implementation) of the nominal robot.
+        data: an ``mjx.Data`` template.
+        tree: the :class:`~jaxbal.mjcf.Tree` (static).
+        body_ids: MuJoCo body id of each jaxbal body, in ``mass_properties`` order.
+        axes: ``(n, 3, 3)`` principal axes of the nominal inertias (MuJoCo's
+            ``body_iquat``), kept fixed when the inertias change.
+        padding: ``(n, 3)`` principal-moment padding (see
+            :func:`jaxbal.mjcf.realisable_inertia`), kept fixed.
+        subtree: ``(nbody, nbody)`` 0/1 matrix, ``subtree[a, b] = 1`` if body b is in
+            the subtree of a (for ``body_subtreemass``).
+        gravity: ``(3,)`` [m/s²].
+    """
+
+    model: mjx.Model
+    data: mjx.Data
+    tree: Tree = eqx.field(static=True)
+    body_ids: tuple[int, ...] = eqx.field(static=True)
+    axes: jax.Array
+    padding: jax.Array
+    subtree: jax.Array
+    gravity: jax.Array
+
+
+def mjx_model(robot: Robot, gravity=None, tree: Tree | None = None) -> MjxRobot:
+    """Compile a concrete ``robot`` for MJX (see :func:`mujoco_model`)."""
+    compiled = mujoco_model(robot, gravity, tree)
+    model = compiled.model
+    bodies = robot.mass_properties()
+    body_ids = tuple(model.body(name).id for name in bodies.names)
+    decomposed = [realisable_inertia(i) for i in np.asarray(bodies.inertia)]
+    subtree = np.eye(model.nbody)
+    for b in range(model.nbody - 1, 0, -1):
+        subtree[model.body_parentid[b]] += subtree[b]
+    mjx_m = mjx.put_model(model, impl="jax")
+    return MjxRobot(
+        model=mjx_m,
+        data=mjx.make_data(mjx_m),
+        tree=compiled.tree,
+        body_ids=body_ids,
+        axes=jnp.asarray(np.stack([d[1] for d in decomposed])),
+        padding=jnp.asarray(np.stack([d[2] for d in decomposed])),
+        subtree=jnp.asarray(subtree),
+        gravity=jnp.asarray(compiled.gravity),
+    )
+
+
+def with_mass_properties(compiled: MjxRobot, robot: Robot) -> mjx.Model:
+    """The ``mjx.Model`` with ``robot``'s (possibly traced) masses, COMs and inertias.
+
+    The robot must have the same bodies as the one compiled. Inertias are expressed
+    in the compiled principal axes (exact while those axes do not change, e.g. when
+    masses, counter-masses or the axial inertias of planar links vary).
+    """
+    bodies = robot.mass_properties()
+    ids = jnp.asarray(compiled.body_ids)
+    principal = jnp.einsum("nji,njk,nki->ni", compiled.axes, bodies.inertia, compiled.axes)
+    model = compiled.model
+    mass = model.body_mass.at[ids].set(bodies.mass)
+    return model.replace(
+        body_mass=mass,
+        body_ipos=model.body_ipos.at[ids].set(bodies.com),
+        body_inertia=model.body_inertia.at[ids].set(principal + compiled.padding),
+        body_subtreemass=compiled.subtree @ mass,
+    )
+
+
+def mjx_base_reaction(
+    compiled: MjxRobot, robot: Robot, q: Coordinates, qd: Coordinates, qdd: Coordinates
+) -> tuple[Vec3, Vec3]:
+    """Force [N] and moment [N·m] on the base from ``mjx.inverse`` (one sample).
+
+    Differentiable with respect to ``robot``'s mass properties and the state; batch
+    over time or designs with ``jax.vmap``. Gravity is the compiled model's.
+
+    Args:
+        compiled: from :func:`mjx_model` (built once from a concrete robot).
+        robot: the robot whose mass properties are used (may be traced).
+        q, qd, qdd: ``(dof,)`` jaxbal coordinates and derivatives.
+    """
+    qpos, qvel, qacc = tree_state(compiled.tree, q, qd, qdd)
+    base = jnp.zeros(6)
+    data = compiled.data.replace(
+        qpos=jnp.concatenate([base, qpos]),
+        qvel=jnp.concatenate([base, qvel]),
+        qacc=jnp.concatenate([base, qacc]),
+    )
+    data = mjx.inverse(with_mass_properties(compiled, robot), data)
+    force = -data.qfrc_inverse[0:3] - BASE_MASS * compiled.gravity
+    return force, -data.qfrc_inverse[3:6]
+
+
+# --- confirmation -----------------------------------------------------------------------
+
+
+class Confirmation(NamedTuple):
+    """How closely jaxbal's shaking wrench and MuJoCo's base reaction agree.
+
+    Attributes:
+        force_relative, moment_relative: max over samples of the difference divided by
+            the peak reference magnitude (the peak gross inertial force/moment
+            ``Σ m_i |a_i|``, ``Σ |dL_i/dt|`` when larger, so a balanced robot's
+            round-off is not divided by ~0).
+        force_error, moment_error: max absolute differences [N], [N·m].
+        relative: ``max(force_relative, moment_relative)``.
+        engine: ``"mujoco"`` (C) or ``"mjx"``.
+        independent: False when the prescribed fallback tree was used.
+    """
+
+    force_relative: float
+    moment_relative: float
+    force_error: float
+    moment_error: float
+    engine: str
+    independent: bool
+
+    @property
+    def relative(self) -> float:
+        return max(self.force_relative, self.moment_relative)
+
+
+def _gross_scales(robot: Robot, q, qd, qdd, gravity):
+    """Peak ``Σ_i |m_i a_i - m_i g|`` and ``Σ_i |dL_i/dt - c_i × m_i g|`` [N], [N·m]."""
+    bodies = robot.mass_properties()
+    g = jnp.zeros(3) if gravity is None else jnp.asarray(gravity, dtype=float)
+
+    def per_body(q_, qd_):
+        def poses(x):
+            origins, rotations = robot.body_frames(x)
+            return origins + jnp.einsum("nij,nj->ni", rotations, bodies.com), rotations
+
+        (c, r), (v, rdot) = jax.jvp(poses, (q_,), (qd_,))
+        skew = jnp.einsum("nij,nkj->nik", rdot, r)
+        omega = jnp.stack([skew[:, 2, 1], skew[:, 0, 2], skew[:, 1, 0]], -1)
+        inertia = jnp.einsum("nij,njk,nlk->nil", r, bodies.inertia, r)
+        p = bodies.mass[:, None] * v
+        return p, jnp.cross(c, p) + jnp.einsum("nij,nj->ni", inertia, omega), c
+
+    def rates(q_, qd_, qdd_):
+        (_, _, c), (dp, dl, _) = jax.jvp(per_body, (q_, qd_), (qd_, qdd_))
+        weight = bodies.mass[:, None] * g
+        force = jnp.sum(jnp.linalg.norm(dp - weight, axis=-1))
+        moment = jnp.sum(jnp.linalg.norm(dl - jnp.cross(c, weight), axis=-1))
+        return force, moment
+
+    force, moment = jax.vmap(rates)(q, qd, qdd)
+    return float(jnp.max(force)), float(jnp.max(moment))
+
+
+def confirm(
+    robot: Robot, q, qd, qdd, gravity=None, engine: str = "mujoco", tree: Tree | None = None
+) -> Confirmation:
+    """Compare :func:`jaxbal.shaking_wrench` with MuJoCo's base reaction.
+
+    Args:
+        robot: a concrete robot.
+        q, qd, qdd: ``(T, dof)`` states along a trajectory (or one ``(dof,)`` state).
+        gravity: ``(3,)`` [m/s²] or ``None``.
+        engine: ``"mujoco"`` (C ``mj_inverse``) or ``"mjx"`` (``mjx.inverse``, jitted).
+        tree: optional tree (default: registered, else the prescribed fallback).
+
+    Returns:
+        A :class:`Confirmation` (max relative and absolute differences).
+    """
+    q, qd, qdd = (jnp.atleast_2d(jnp.asarray(a, dtype=float)) for a in (q, qd, qdd))
+    ref_force, ref_moment = jax.jit(
+        jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c, gravity=gravity))
+    )(q, qd, qdd)
+    if engine == "mujoco":
+        force, moment = mujoco_base_reaction(robot, q, qd, qdd, gravity=gravity, tree=tree)
+        independent = (robot_tree(robot, fallback=True) if tree is None else tree).independent
+    elif engine == "mjx":
+        compiled = mjx_model(robot, gravity, tree)
+        force, moment = jax.jit(jax.vmap(mjx_base_reaction, in_axes=(None, None, 0, 0, 0)))(
+            compiled, robot, q, qd, qdd
+        )
+        independent = compiled.tree.independent
+    else:
+        raise ValueError(f"engine must be 'mujoco' or 'mjx', got {engine!r}")
+    gross_force, gross_moment = _gross_scales(robot, q, qd, qdd, gravity)
+    force_error = float(np.max(np.abs(np.asarray(force) - np.asarray(ref_force))))
+    moment_error = float(np.max(np.abs(np.asarray(moment) - np.asarray(ref_moment))))
+    force_scale = max(float(jnp.max(jnp.abs(ref_force))), gross_force, 1e-300)
+    moment_scale = max(float(jnp.max(jnp.abs(ref_moment))), gross_moment, 1e-300)
+    return Confirmation(
+        force_relative=force_error / force_scale,
+        moment_relative=moment_error / moment_scale,
+        force_error=force_error,
+        moment_error=moment_error,
+        engine=engine,
+        independent=independent,
+    )
