@@ -1,0 +1,237 @@
+"""SCARA of Arakelian & Briot (2008): closed-form force balancing, optax co-design, and the
+reactionless end-effector rotation law, all checked with the generic shaking wrench."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax.test_util import check_grads
+
+import jaxbal
+from jaxbal.planning import wrench_along
+from jaxbal.robots import scara_balancing as sb
+from jaxbal.robots.scara import PickAndPlace, Scara, joint_trajectory, scara
+
+DEG = np.pi / 180
+DURATION = 0.3
+TIMES = jaxbal.sample_times(DURATION, 61)
+
+
+def paper_move(lift=0.025):
+    """§2: x 0.15 → −0.15 m, y = 0.2 m, φ 83° → 157°, quintic, 0.3 s."""
+    return PickAndPlace([0.15, 0.2, 83 * DEG], [-0.15, 0.2, 157 * DEG], DURATION, lift=lift)
+
+
+def general_scara():
+    """A SCARA with an off-axis end-effector COM and a payload (exercises condition 1)."""
+    return Scara(
+        lengths=[0.2, 0.15],
+        com_offsets=[0.08, 0.06, 0.02],
+        masses=[2.0, 1.5, 0.4],
+        inertias=[0.02, 0.01, 0.002],
+        payload=0.3,
+        counter_distances=[0.12, 0.1, 0.04],
+    )
+
+
+@pytest.fixture(scope="module")
+def unbalanced_wrench():
+    robot = scara()
+    return wrench_along(robot, joint_trajectory(robot, paper_move()), TIMES)
+
+
+def test_inverse_kinematics_round_trip_and_paper_working_mode():
+    # Reference: forward kinematics (exact to 1e-12); the paper's φ_i = 83°, φ_f = 157°
+    # coincide with the link-2 angle θ1 + θ2 of working mode +1 (to 0.3°).
+    robot = scara()
+    move = paper_move()
+    for t in (0.0, 0.1, DURATION):
+        pose = move(t)
+        np.testing.assert_allclose(
+            robot.end_effector(robot.inverse_kinematics(pose)), pose, atol=1e-12
+        )
+    q0, q1 = robot.inverse_kinematics(move(0.0)), robot.inverse_kinematics(move(DURATION))
+    assert abs(float(q0[0] + q0[1]) / DEG - 83.0) < 0.3
+    assert abs(float(q1[0] + q1[1]) / DEG - 157.0) < 0.3
+
+
+def test_closed_form_satisfies_conditions_and_matches_printed_design():
+    # Reference: conditions (1)-(3) (zero to 1e-14 kg·m) and the paper's printed balanced
+    # m1 = 6.2 kg, l_O1S1 = −0.117 m, m2 = 4.8 kg, l_O2S2 = −0.047 m (0.6% = rounding).
+    balanced = sb.force_balanced(scara())
+    np.testing.assert_allclose(sb.balance_residuals(balanced), 0.0, atol=1e-14)
+    m, s = balanced.masses, balanced.com_offsets
+    mc, rc = balanced.counter_masses, balanced.counter_distances
+    merged_mass = m[:2] + mc[:2]
+    merged_offset = (m[:2] * s[:2] - mc[:2] * rc[:2]) / merged_mass
+    np.testing.assert_allclose(merged_mass, [6.2, 4.8], rtol=6e-3)
+    np.testing.assert_allclose(merged_offset, [-0.117, -0.047], rtol=6e-3)
+    assert float(balanced.vertical_counterweight) == pytest.approx(0.5, rel=1e-15)
+
+
+def test_closed_form_solving_for_distances_is_the_inverse():
+    # Reference: solving for distances at the closed-form masses returns the distances.
+    robot = general_scara()
+    balanced = sb.force_balanced(robot)
+    again = sb.force_balanced(
+        Scara(
+            robot.lengths,
+            robot.com_offsets,
+            robot.masses,
+            robot.inertias,
+            robot.payload,
+            counter_masses=balanced.counter_masses,
+            counter_distances=[0.5, 0.5, 0.5],
+        ),
+        solve_for="distances",
+    )
+    np.testing.assert_allclose(again.counter_distances, robot.counter_distances, rtol=1e-13)
+    np.testing.assert_allclose(sb.balance_residuals(again), 0.0, atol=1e-14)
+
+
+@pytest.mark.parametrize("make", [scara, general_scara])
+def test_balanced_robot_has_zero_shaking_force(make):
+    # Reference: a force-balanced robot gives zero force (< 1e-9 of the unbalanced one).
+    robot = make()
+    move = PickAndPlace([0.15, 0.2, 0.3], [-0.1, 0.25, 1.2], DURATION, lift=0.03)
+    forces0, _ = wrench_along(robot, joint_trajectory(robot, move), TIMES)
+    balanced = sb.force_balanced(robot)
+    forces, _ = wrench_along(balanced, joint_trajectory(balanced, move), TIMES)
+    assert float(jnp.max(jnp.abs(forces))) < 1e-9 * float(jnp.max(jnp.abs(forces0)))
+
+
+def test_codesign_recovers_closed_form():
+    # Reference: closed form (eqs 1-3), 1e-6 relative, from a start 60% off.
+    robot = general_scara()
+    moves = [
+        PickAndPlace([0.15, 0.2, 0.0], [-0.15, 0.2, 1.5], DURATION, lift=0.025),
+        PickAndPlace([0.25, 0.1, -1.0], [0.0, 0.3, 0.5], 0.4, lift=0.03),
+    ]
+    paths = [joint_trajectory(robot, move) for move in moves]
+    samples = sb.move_samples(paths, [move.duration for move in moves], count=16)
+    closed = sb.counter_mass_design(sb.force_balanced(robot))
+    solution = sb.codesign_counter_masses(robot, samples, 1.6 * closed)
+    error = jnp.linalg.norm(solution.params - closed) / jnp.linalg.norm(closed)
+    assert float(error) < 1e-6
+    # A mass penalty trades residual force for less added mass.
+    penalised = sb.codesign_counter_masses(robot, samples, closed, mass_weight=0.1)
+    assert float(sb.added_mass(penalised.params)) < float(sb.added_mass(closed))
+    assert bool(jnp.all(penalised.params >= 0))
+
+
+def test_angular_momentum_coefficients_match_generic_momentum():
+    # Reference: jaxbal.momentum (independent, generic) at a random configuration; exact
+    # to 1e-14 for the force-balanced robot, whatever the configuration.
+    balanced = sb.force_balanced(general_scara())
+    j1, j2, j3 = sb.angular_momentum_coefficients(balanced)
+    q = jnp.array([0.3, 1.1, -0.4, 0.01])
+    lz = [jaxbal.momentum(balanced, q, jnp.eye(4)[k])[1][2] for k in range(3)]
+    np.testing.assert_allclose(lz, [j1 + j2 + j3, j2 + j3, j3], rtol=1e-14)
+
+
+def test_rotation_law_cancels_the_whole_wrench(unbalanced_wrench):
+    # Reference: generic shaking_wrench; force and moment < 1e-9 of the unbalanced robot.
+    forces0, moments0 = unbalanced_wrench
+    balanced = sb.force_balanced(scara())
+    forces, moments = wrench_along(
+        balanced, sb.ReactionlessTrajectory(balanced, paper_move()), TIMES
+    )
+    assert float(jnp.max(jnp.abs(forces))) < 1e-9 * float(jnp.max(jnp.abs(forces0)))
+    assert float(jnp.max(jnp.abs(moments))) < 1e-9 * float(jnp.max(jnp.abs(moments0)))
+
+
+def test_eq8_as_printed_leaves_a_moment():
+    # Reference: the force-balanced robot's moment; eq (8) with the links' own inertias
+    # leaves more than 10% of it (it omits the carried masses' m·l² terms).
+    balanced = sb.force_balanced(scara())
+    _, moments_fb = wrench_along(balanced, joint_trajectory(balanced, paper_move()), TIMES)
+    path = sb.ReactionlessTrajectory(balanced, paper_move(), law=sb.eq8_orientation)
+    _, moments = wrench_along(balanced, path, TIMES)
+    assert float(jnp.max(jnp.abs(moments[:, 2]))) > 0.1 * float(jnp.max(jnp.abs(moments_fb[:, 2])))
+
+
+def test_turns_closed_form():
+    # Reference: Δφ = −(J1 + J2) Δθ1 / J3 since Δθ1 = Δθ12 on the paper's move (same
+    # radius at both ends), to 1e-12.
+    balanced = sb.force_balanced(scara())
+    j1, j2, j3 = sb.angular_momentum_coefficients(balanced)
+    move = paper_move()
+    q0, q1 = (balanced.inverse_kinematics(move(t)) for t in (0.0, DURATION))
+    expected = -(j1 + j2) * (q1[0] - q0[0]) / j3 / (2 * np.pi)
+    turns_phi, _ = sb.reactionless_turns(balanced, move, DURATION)
+    assert float(turns_phi) == pytest.approx(float(expected), rel=1e-12)
+
+
+def test_gradients():
+    # Reference: jax.test_util.check_grads (finite differences), forward and reverse.
+    robot = general_scara()
+    move = paper_move()
+    q, qd, qdd = jaxbal.time_derivatives(joint_trajectory(robot, move), 0.11)
+
+    def force(design):
+        return jaxbal.shaking_wrench(sb.with_counter_mass_design(robot, design), q, qd, qdd)[0]
+
+    check_grads(force, (jnp.array([1.0, 0.7, 0.2, 0.5]),), order=2, modes=("fwd", "rev"))
+
+    def turns(inertias):
+        balanced = sb.force_balanced(eqx_replace_inertias(robot, inertias))
+        return sb.reactionless_turns(balanced, move, DURATION)[0]
+
+    inertias = robot.inertias
+    check_grads(turns, (inertias,), order=1, modes=("fwd", "rev"), eps=1e-7)
+    grad = jax.grad(turns)(inertias)
+    assert bool(jnp.all(jnp.isfinite(grad)))
+
+
+def eqx_replace_inertias(robot, inertias):
+    import equinox as eqx
+
+    return eqx.tree_at(lambda r: r.inertias, robot, inertias)
+
+
+def test_vmap_equals_loop():
+    # Reference: a Python loop over end-effector inertias (exact to 1e-14).
+    balanced = sb.force_balanced(scara())
+    move = paper_move()
+    values = jnp.array([0.005, 0.0126, 0.05, 0.2])
+
+    def turns(i3):
+        return sb.reactionless_turns(
+            eqx_replace_inertias(balanced, balanced.inertias.at[2].set(i3)), move, DURATION
+        )[0]
+
+    batched = jax.vmap(turns)(values)
+    looped = jnp.stack([turns(v) for v in values])
+    np.testing.assert_allclose(batched, looped, rtol=1e-14)
+
+
+def test_unreachable_target_raises():
+    robot = scara()
+    with pytest.raises(ValueError, match="out of reach"):
+        joint_trajectory(robot, PickAndPlace([0.15, 0.2, 0.0], [0.5, 0.0, 0.0], DURATION))
+    # Both ends reachable, but the straight line crosses the inner dead zone (r < 0.1 m).
+    with pytest.raises(ValueError, match="out of reach"):
+        joint_trajectory(robot, PickAndPlace([0.2, 0.0, 0.0], [-0.2, 0.0, 0.0], DURATION))
+    with pytest.raises(ValueError, match="out of reach"):
+        robot.inverse_kinematics(jnp.array([0.4, 0.0, 0.0, 0.0]))
+
+
+def test_invalid_parameters_raise():
+    with pytest.raises(ValueError, match="non-negative"):
+        Scara([0.1, 0.2], [0.0, 0.0, 0.0], [1.0, -1.0, 1.0], [0.1, 0.1, 0.1])
+    with pytest.raises(ValueError, match="shape"):
+        Scara([0.1, 0.2, 0.3], [0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.1, 0.1, 0.1])
+    with pytest.raises(ValueError, match="shape"):
+        scara().body_frames(jnp.zeros(3))
+    with pytest.raises(ValueError, match="solve_for"):
+        sb.force_balanced(scara(), solve_for="inertias")
+    with pytest.raises(ValueError, match="positive"):
+        sb.force_balanced(
+            Scara(
+                [0.1, 0.2],
+                [0.05, 0.1, 0.0],
+                [1.0, 1.0, 1.0],
+                [0.1] * 3,
+                counter_distances=[0.0, 0.1, 0.1],
+            )
+        )
