@@ -120,8 +120,15 @@ def torque_rate_along(
 
 
 def peak_norm(vectors: Float[Array, "t 3"]) -> Float[Array, ""]:
-    """``max_t ‖v(t)‖`` (e.g. the maximal shaking force of the papers' tables)."""
-    return jnp.max(jnp.linalg.norm(vectors, axis=-1))
+    """``max_t ‖v(t)‖`` (e.g. the maximal shaking force of the papers' tables).
+
+    Differentiable everywhere: the norm uses the double-``where`` trick so that an
+    instant with ``v = 0`` (rest at the ends of a move) gives a zero, not NaN, gradient.
+    """
+    squared = jnp.sum(vectors**2, axis=-1)
+    positive = squared > 0.0
+    norms = jnp.where(positive, jnp.sqrt(jnp.where(positive, squared, 1.0)), 0.0)
+    return jnp.max(norms)
 
 
 def smooth_peak(values: Float[Array, " t"], temperature: ScalarLike) -> Float[Array, ""]:
