@@ -1,5 +1,328 @@
-"""Placeholder: filled in by the dual_v work (see the issue). Not yet implemented."""
+"""The DUAL-V: a redundant planar 4-RRR parallel robot (van der Wijk et al. 2013).
+
+Four RR arms ``A_i B_i C_i`` carry a platform *link* 5 whose two joints coincide pairwise
+(``C_1 = C_2``, ``C_3 = C_4``). Links ``i1`` (``A_i B_i``) are driven at the base; a brass
+counter-mass (with a lead tuning mass) sits on the prolongation of each link ``i1``.
+
+=====================  ==========  ======  ===========================================
+parameter              value       unit    source (Table 1)
+=====================  ==========  ======  ===========================================
+l_i1, l_i2             0.2800      m       links A_iB_i, B_iC_i (all arms equal)
+a = l_i1·√2, b         0.3960, 0.11 m      base pivots; platform length l_5 = 2b = 0.22
+m_i1, I_i1, p_i1       1.169, 0.012967, 0.0737   kg, kg·m², m (COM from A_i)
+m_i2, I_i2, p_i2       0.606, 0.006417, 0.1279   kg, kg·m², m (COM from B_i)
+m_5, I_5               0.899, 0.008168 kg, kg·m²  (COM at the platform centre)
+m_cm,i, I_cm,i, p_cm,i 7.983, 0.026845, 0.0575  counter-mass *including* tuning mass
+m_tun,i, p_tun,i       0.188, 0.080    kg, m     lead tuning mass (point mass)
+I_act,i                0.0041          kg·m²     actuator rotor
+=====================  ==========  ======  ===========================================
+
+Layout (Fig 2c is not in the text; derived from it and the equations, see the drawing
+``plot_layout``):
+
+* base frame at the workspace centre; platform pose ``u = (x5, y5, θ5)``. At ``θ5 = 0``
+  the platform lies along y: ``C_1 = C_2 = (x5, y5 + b)``, ``C_3 = C_4 = (x5, y5 - b)``,
+  i.e. ``C_i = (x5, y5) + s_i·b·(-sin θ5, cos θ5)`` with ``s = (+1, +1, -1, -1)``; these
+  signs are the only ones that reproduce the ``∓c(θ_i2 - θ5)·b`` column of eq (7).
+* base pivots numbered counter-clockwise from the first quadrant:
+  ``A_1 = (a, b)``, ``A_2 = (-a, b)``, ``A_3 = (-a, -b)``, ``A_4 = (a, -b)``; then
+  ``A_i - C_i = (±a - x5, -y5)`` and the workspace of a non-rotated platform is the
+  intersection of the circles of radius ``l_i1 + l_i2`` about ``(±a, 0)``: widths
+  ``2(l_i1 + l_i2 - a) = 0.328 m`` along x and ``2·sqrt((l_i1 + l_i2)² - a²) = 0.792 m``
+  along y, as the paper states. (The mirror image x → -x is equally consistent.)
+* arms 1, 4 and arms 2, 3 form the parallelograms: with the *elbow branch*
+  ``σ_i = sign sin(θ_i2 - θ_i1)`` equal to ``OUTWARD = (+1, -1, +1, -1)`` (elbows away
+  from the x axis, the two "V"s) or ``CROSSED = (-1, +1, -1, +1)``, a non-rotated platform
+  gives ``θ_41 = θ_12, θ_42 = θ_11, θ_31 = θ_22, θ_32 = θ_21``. Hence the linear
+  momentum multiplies the four link directions ``e_11, e_21, e_22 (= e_31), e_12 (= e_41)``
+  by exactly the four rows of eq (2). Mixed branches break the parallelograms.
+* all angles are absolute, from the x axis, counter-clockwise [rad].
+
+Coordinates ``q`` (what :meth:`DualV.inverse_kinematics` returns, 11 entries):
+``(θ_11, θ_21, θ_31, θ_41, θ_12, θ_22, θ_32, θ_42, x5, y5, θ5)``.
+
+References:
+    van der Wijk, V., Krut, S., Pierrot, F., Herder, J. L. (2013). Design and
+    experimental evaluation of a dynamically balanced redundant planar 4-RRR parallel
+    manipulator. Int. J. Robotics Research 32(6), 744-759. Table 1, eqs (1)-(9), Fig 8.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from jaxbal.robot import Bodies, Robot, planar_inertia, rot_z
+from jaxbal.types import Array, Float
+from jaxbal.validation import check_nonnegative, check_shape, raise_if_invalid
+
+__all__ = ["CROSSED", "OUTWARD", "DualV", "dual_v"]
+
+OUTWARD = (1, -1, 1, -1)
+CROSSED = (-1, 1, -1, 1)
+BASE_SIDE = jnp.array([1.0, -1.0, -1.0, 1.0])  # x sign of A_i
+PLATFORM_END = jnp.array([1.0, 1.0, -1.0, -1.0])  # s_i: y sign of A_i and end of C_i
+N_COORDINATES = 11
 
 
-def dual_v(*args, **kwargs):
-    raise NotImplementedError("jaxbal.robots.dual_v is not implemented yet")
+def _unit(angle):
+    return jnp.stack([jnp.cos(angle), jnp.sin(angle)], -1)
+
+
+def _wrap(angle):
+    return jnp.arctan2(jnp.sin(angle), jnp.cos(angle))
+
+
+def _per_arm(value):
+    """The same value for the four arms, ``(4,)``."""
+    return jnp.broadcast_to(jnp.asarray(value, dtype=float), (4,))
+
+
+class DualV(Robot):
+    """The DUAL-V robot: geometry and mass parameters as differentiable leaves.
+
+    Attributes:
+        l1, l2: ``(4,)`` lengths of links i1 and i2 [m].
+        a, b: base pivot distances [m]; ``b`` is also the platform half-length.
+        m1, p1, inertia1: ``(4,)`` mass [kg], COM distance from A_i [m], inertia about
+            the COM [kg·m²] of links i1.
+        m2, p2, inertia2: ``(4,)`` same for links i2 (COM distance from B_i).
+        m5, inertia5: platform mass [kg] and inertia about its centre [kg·m²].
+        payload: point mass at the platform centre [kg].
+        m_cm, p_cm, inertia_cm: ``(4,)`` counter-masses *with* their tuning masses
+            (Table 1): mass [kg], COM distance behind A_i [m], inertia about COM [kg·m²].
+        m_tun, p_tun: ``(4,)`` lead tuning masses [kg] at ``p_tun`` behind A_i [m].
+        tuning_scale: ``(4,)`` fraction of each tuning mass mounted (1 = Table 1,
+            0 = removed, the "96.72 % balanced" robot).
+        inertia_act: ``(4,)`` actuator rotor inertias [kg·m²].
+    """
+
+    l1: Float[Array, "4"]
+    l2: Float[Array, "4"]
+    a: Float[Array, ""]
+    b: Float[Array, ""]
+    m1: Float[Array, "4"]
+    p1: Float[Array, "4"]
+    inertia1: Float[Array, "4"]
+    m2: Float[Array, "4"]
+    p2: Float[Array, "4"]
+    inertia2: Float[Array, "4"]
+    m5: Float[Array, ""]
+    inertia5: Float[Array, ""]
+    payload: Float[Array, ""]
+    m_cm: Float[Array, "4"]
+    p_cm: Float[Array, "4"]
+    inertia_cm: Float[Array, "4"]
+    m_tun: Float[Array, "4"]
+    p_tun: Float[Array, "4"]
+    tuning_scale: Float[Array, "4"]
+    inertia_act: Float[Array, "4"]
+
+    def __check_init__(self):
+        for name in ("l1", "l2", "m1", "p1", "inertia1", "m2", "p2", "inertia2"):
+            check_shape(name, getattr(self, name), (4,))
+        for name in ("m_cm", "p_cm", "inertia_cm", "m_tun", "p_tun", "tuning_scale"):
+            check_shape(name, getattr(self, name), (4,))
+        check_shape("inertia_act", self.inertia_act, (4,))
+        for name in ("a", "b", "m5", "inertia5", "payload"):
+            check_shape(name, getattr(self, name), ())
+        for name in ("l1", "l2", "m1", "m2", "m5", "payload", "m_cm", "m_tun", "inertia_cm"):
+            check_nonnegative(f"DualV.{name}", getattr(self, name))
+        check_nonnegative("DualV.inertia1", self.inertia1)
+        check_nonnegative("DualV.inertia2", self.inertia2)
+        check_nonnegative("DualV.m_cm - m_tun (brass part)", self.m_cm - self.m_tun)
+
+    @property
+    def dof(self) -> int:
+        return N_COORDINATES
+
+    # --- geometry -------------------------------------------------------------------
+
+    def base_pivots(self) -> Float[Array, "4 2"]:
+        """Base pivots ``A_i`` [m]."""
+        return jnp.stack([BASE_SIDE * self.a, PLATFORM_END * self.b], -1)
+
+    def platform_joints(self, pose) -> Float[Array, "4 2"]:
+        """Platform joints ``C_i`` of arm i [m] for the pose ``(x5, y5, θ5)``."""
+        pose = jnp.asarray(pose, dtype=float)
+        offset = self.b * jnp.stack([-jnp.sin(pose[2]), jnp.cos(pose[2])])
+        return pose[:2] + PLATFORM_END[:, None] * offset
+
+    def joint_positions(self, q) -> tuple[Float[Array, "4 2"], ...]:
+        """``(A, B, C)``, each ``(4, 2)`` [m], from the coordinates ``q``."""
+        q = jnp.asarray(q, dtype=float)
+        base = self.base_pivots()
+        elbows = base + self.l1[:, None] * _unit(q[0:4])
+        return base, elbows, elbows + self.l2[:, None] * _unit(q[4:8])
+
+    def constraint(self, q) -> Float[Array, "8"]:
+        """Loop-closure residuals ``C_i(arm) - C_i(platform)`` (zero on valid ``q``) [m]."""
+        _, _, ends = self.joint_positions(q)
+        return (ends - self.platform_joints(q[8:11])).reshape(-1)
+
+    # --- counter-mass bookkeeping ---------------------------------------------------
+
+    def counter_mass_moments(self) -> Float[Array, "4"]:
+        """``m_cm,i·p_cm,i`` of the mounted counter-masses (tuning fraction applied) [kg·m]."""
+        return self.m_cm * self.p_cm - (1.0 - self.tuning_scale) * self.m_tun * self.p_tun
+
+    def counter_mass_inertia_about_base(self) -> Float[Array, "4"]:
+        """``I_cm,i + m_cm,i·p_cm,i²`` of the mounted counter-masses about A_i [kg·m²]."""
+        full = self.inertia_cm + self.m_cm * self.p_cm**2
+        return full - (1.0 - self.tuning_scale) * self.m_tun * self.p_tun**2
+
+    def without_tuning_masses(self) -> DualV:
+        """The robot with the lead tuning masses removed (the 96.72 % balanced robot)."""
+        return eqx.tree_at(lambda r: r.tuning_scale, self, jnp.zeros(4))
+
+    def without_counter_masses(self) -> DualV:
+        """The unbalanced robot: counter-masses and tuning masses removed."""
+        zeros = jnp.zeros(4)
+        return eqx.tree_at(lambda r: (r.m_cm, r.inertia_cm, r.m_tun), self, (zeros, zeros, zeros))
+
+    def _brass(self):
+        mass = self.m_cm - self.m_tun
+        moment = self.m_cm * self.p_cm - self.m_tun * self.p_tun
+        distance = moment / jnp.maximum(mass, 1e-12)
+        about_base = self.inertia_cm + self.m_cm * self.p_cm**2 - self.m_tun * self.p_tun**2
+        return mass, distance, about_base - mass * distance**2
+
+    # --- the two methods every robot provides ---------------------------------------
+
+    def mass_properties(self) -> Bodies:
+        """22 bodies: links i1, links i2, platform, payload, brass counter-masses,
+        tuning masses, actuator rotors (in this order, four of each per arm)."""
+        zeros = jnp.zeros(4)
+        brass_mass, brass_distance, brass_inertia = self._brass()
+
+        def along(distance):
+            return jnp.stack([distance, zeros, zeros], -1)
+
+        mass = jnp.concatenate(
+            [self.m1, self.m2, jnp.stack([self.m5, self.payload]), brass_mass,
+             self.tuning_scale * self.m_tun, zeros]
+        )  # fmt: skip
+        com = jnp.concatenate(
+            [along(self.p1), along(self.p2), jnp.zeros((2, 3)), along(-brass_distance),
+             along(-self.p_tun), jnp.zeros((4, 3))]
+        )  # fmt: skip
+        izz = jnp.concatenate(
+            [self.inertia1, self.inertia2, jnp.stack([self.inertia5, 0.0 * self.m5]),
+             brass_inertia, zeros, self.inertia_act]
+        )  # fmt: skip
+        names = (
+            tuple(f"link{i}1" for i in range(1, 5))
+            + tuple(f"link{i}2" for i in range(1, 5))
+            + ("platform", "payload")
+            + tuple(f"counter_mass{i}" for i in range(1, 5))
+            + tuple(f"tuning_mass{i}" for i in range(1, 5))
+            + tuple(f"rotor{i}" for i in range(1, 5))
+        )
+        return Bodies(mass=mass, com=com, inertia=planar_inertia(izz), names=names)
+
+    def body_frames(self, q):
+        """Frames of the 22 bodies for the 11 coordinates ``q`` (see the module doc)."""
+        q = jnp.asarray(q, dtype=float)
+        check_shape("q", q, (N_COORDINATES,))
+        base, elbows, _ = self.joint_positions(q)
+        centre = q[8:10][None]
+        origins2d = jnp.concatenate([base, elbows, centre, centre, base, base, base])
+        origins = jnp.concatenate([origins2d, jnp.zeros((22, 1))], -1)
+        angles = jnp.concatenate([q[0:4], q[4:8], q[10:11], q[10:11], q[0:4], q[0:4], q[0:4]])
+        return origins, rot_z(angles)
+
+    # --- kinematics -----------------------------------------------------------------
+
+    def inverse_kinematics(self, pose, branch=OUTWARD, return_valid: bool = False):
+        """All 11 coordinates from the platform pose, closed form per arm.
+
+        Args:
+            pose: ``(3,)`` platform pose ``(x5 [m], y5 [m], θ5 [rad])``.
+            branch: four elbow signs ``σ_i = sign sin(θ_i2 - θ_i1)`` (``OUTWARD``,
+                ``CROSSED`` or any tuple of ±1).
+            return_valid: return ``(q, valid)``, a boolean mask (all arms reach their
+                joint), instead of raising; ``q`` is then clipped to the boundary.
+
+        Returns:
+            ``q`` ``(11,)`` (and the mask). Batch with ``jax.vmap``.
+
+        Raises:
+            ValueError: eagerly, when the pose is outside the workspace (unless
+                ``return_valid``).
+        """
+        pose = jnp.asarray(pose, dtype=float)
+        check_shape("pose", pose, (3,))
+        sigma = jnp.asarray(branch, dtype=float)
+        check_shape("branch", sigma, (4,))
+        reach = self.platform_joints(pose) - self.base_pivots()
+        distance2 = jnp.sum(reach**2, -1)
+        distance = jnp.sqrt(jnp.maximum(distance2, 1e-24))
+        cos_alpha = (self.l1**2 + distance2 - self.l2**2) / (2.0 * self.l1 * distance)
+        valid = jnp.all(jnp.abs(cos_alpha) <= 1.0) & jnp.all(distance2 > 1e-20)
+        if not return_valid:
+            raise_if_invalid(valid, "DUAL-V platform pose outside the workspace", pose)
+        alpha = jnp.arccos(jnp.clip(cos_alpha, -1.0 + 1e-15, 1.0 - 1e-15))
+        theta1 = _wrap(jnp.arctan2(reach[:, 1], reach[:, 0]) - sigma * alpha)
+        to_end = reach - self.l1[:, None] * _unit(theta1)
+        theta2 = jnp.arctan2(to_end[:, 1], to_end[:, 0])
+        q = jnp.concatenate([theta1, theta2, pose])
+        return (q, valid) if return_valid else q
+
+    def jacobian(self, q) -> Float[Array, "4 3"]:
+        """Eq (9): ``q̇_a = J u̇`` with ``q_a = (θ_11..θ_41)``, ``u = (x5, y5, θ5)``."""
+        q = jnp.asarray(q, dtype=float)
+        theta1, theta2, theta5 = q[0:4], q[4:8], q[10]
+        denominator = self.l1 * jnp.sin(theta1 - theta2)
+        rows = jnp.stack(
+            [-jnp.cos(theta2), -jnp.sin(theta2), PLATFORM_END * self.b * jnp.cos(theta2 - theta5)],
+            -1,
+        )
+        return rows / denominator[:, None]
+
+    def harmonised_condition_number(self, q):
+        """``κ = cond(J·diag(1, 1, 1/b))`` of Fig 8 (2-norm) [-]."""
+        jh = self.jacobian(q) * jnp.array([1.0, 1.0, 1.0 / self.b])
+        singular = jnp.linalg.svd(jh, compute_uv=False)
+        return singular[0] / jnp.maximum(singular[-1], 1e-300)
+
+
+def dual_v(
+    counter_masses: bool = True,
+    tuning_masses: bool = True,
+    payload: float = 0.0,
+) -> DualV:
+    """The DUAL-V prototype of Table 1.
+
+    Args:
+        counter_masses: mount the counter-masses (``False``: the unbalanced robot).
+        tuning_masses: keep the lead tuning masses (``False``: "96.72 % balanced").
+        payload: point mass at the platform centre [kg].
+    """
+    arm = _per_arm
+    robot = DualV(
+        l1=arm(0.28),
+        l2=arm(0.28),
+        a=jnp.asarray(0.396),
+        b=jnp.asarray(0.11),
+        m1=arm(1.169),
+        p1=arm(0.0737),
+        inertia1=arm(0.012967),
+        m2=arm(0.606),
+        p2=arm(0.1279),
+        inertia2=arm(0.006417),
+        m5=jnp.asarray(0.899),
+        inertia5=jnp.asarray(0.008168),
+        payload=jnp.asarray(payload, dtype=float),
+        m_cm=arm(7.983),
+        p_cm=arm(0.0575),
+        inertia_cm=arm(0.026845),
+        m_tun=arm(0.188),
+        p_tun=arm(0.080),
+        tuning_scale=arm(1.0),
+        inertia_act=arm(0.0041),
+    )
+    if not tuning_masses:
+        robot = robot.without_tuning_masses()
+    if not counter_masses:
+        robot = robot.without_counter_masses()
+    return robot

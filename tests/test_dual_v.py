@@ -1,0 +1,172 @@
+"""Tests of the DUAL-V (van der Wijk et al. 2013): kinematics, balance, dynamics."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax.test_util import check_grads
+
+import jaxbal
+from jaxbal.robots.dual_v import CROSSED, OUTWARD, dual_v
+from jaxbal.robots.dual_v_dynamics import (
+    base_wrench_from_bearings,
+    bearing_forces,
+    joint_motion,
+    paper_torques,
+    torque_split,
+    virtual_work_torques,
+)
+
+POSES = jnp.array([[0.0, 0.0, 0.0], [0.05, 0.02, 0.0], [0.03, -0.04, 0.1], [-0.06, 0.08, -0.15]])
+MOTION = (
+    jnp.array([0.03, -0.05, 0.1]),
+    jnp.array([0.8, -0.5, 2.0]),
+    jnp.array([30.0, -50.0, 300.0]),
+)
+
+
+@pytest.mark.parametrize("branch", [OUTWARD, CROSSED])
+def test_ik_round_trip_and_loop_closure(branch):
+    """IK → joint positions closes every loop (reference: 0, tol 1e-12 m) and the
+    elbow signs are the requested branch."""
+    robot = dual_v()
+    for pose in POSES:
+        q = robot.inverse_kinematics(pose, branch)
+        np.testing.assert_allclose(robot.constraint(q), 0.0, atol=1e-12)
+        np.testing.assert_allclose(q[8:], pose, atol=0)
+        np.testing.assert_array_equal(np.sign(np.sin(q[4:8] - q[0:4])), branch)
+
+
+def test_parallelograms_and_workspace_widths():
+    """Non-rotated platform: θ41 = θ12, θ42 = θ11, θ31 = θ22, θ32 = θ21 (layout derived
+    from eq 2); workspace widths 0.328 m along x and 0.792 m along y (paper §3)."""
+    robot = dual_v()
+    q = robot.inverse_kinematics(jnp.array([0.07, -0.12, 0.0]))
+    wrap = lambda x: np.angle(np.exp(1j * np.asarray(x)))  # noqa: E731
+    np.testing.assert_allclose(wrap(q[3] - q[4]), 0.0, atol=1e-12)
+    np.testing.assert_allclose(wrap(q[7] - q[0]), 0.0, atol=1e-12)
+    np.testing.assert_allclose(wrap(q[2] - q[5]), 0.0, atol=1e-12)
+    np.testing.assert_allclose(wrap(q[6] - q[1]), 0.0, atol=1e-12)
+    half_x = 0.56 - 0.396
+    _, ok = robot.inverse_kinematics(jnp.array([half_x - 1e-6, 0.0, 0.0]), return_valid=True)
+    assert ok
+    _, ok = robot.inverse_kinematics(jnp.array([half_x + 1e-6, 0.0, 0.0]), return_valid=True)
+    assert not ok
+    assert abs(2 * half_x - 0.328) < 1e-12
+    half_y = float(np.sqrt(0.56**2 - 0.396**2))
+    assert abs(2 * half_y - 0.792) < 1e-3  # paper rounds 2a
+    _, ok = robot.inverse_kinematics(jnp.array([0.0, half_y + 1e-6, 0.0]), return_valid=True)
+    assert not ok
+
+
+def test_out_of_workspace_raises():
+    with pytest.raises(ValueError, match="outside the workspace"):
+        dual_v().inverse_kinematics(jnp.array([0.3, 0.0, 0.0]))
+    with pytest.raises(ValueError, match="shape"):
+        dual_v().inverse_kinematics(jnp.array([0.0, 0.0]))
+
+
+def test_negative_mass_raises():
+    robot = dual_v()
+    with pytest.raises(ValueError, match="non-negative"):
+        type(robot)(**{**robot.__dict__, "m5": jnp.asarray(-1.0)})
+
+
+def test_jacobian_eq9_matches_autodiff():
+    """Eq (9) vs autodiff of the IK (tol 1e-12)."""
+    robot = dual_v()
+    for pose in POSES:
+        for branch in (OUTWARD, CROSSED):
+            q = robot.inverse_kinematics(pose, branch)
+            auto = jax.jacfwd(lambda u, b=branch: robot.inverse_kinematics(u, b))(pose)[:4]
+            np.testing.assert_allclose(robot.jacobian(q), auto, atol=1e-12)
+
+
+def test_condition_number_at_centre():
+    """The harmonised Jacobian is well conditioned at the centre (Fig 8: κ close to 1)."""
+    robot = dual_v()
+    kappa = robot.harmonised_condition_number(robot.inverse_kinematics(jnp.zeros(3)))
+    assert 1.0 <= float(kappa) < 1.2
+
+
+def _wrench(robot, pose, velocity, acceleration, branch=OUTWARD):
+    q, qd, qdd = joint_motion(robot, pose, velocity, acceleration, branch)
+    return jaxbal.shaking_wrench(robot, q, qd, qdd)
+
+
+@pytest.mark.parametrize("branch", [OUTWARD, CROSSED])
+def test_balanced_robot_zero_shaking_force(branch):
+    """Counter-masses exactly at eq (2): zero shaking force for any non-rotated
+    translation (reference 0, tol 1e-10 N at ~100 m/s²)."""
+    from jaxbal.robots.dual_v_balancing import balance_condition_eq2, with_counter_mass_moments
+
+    robot = with_counter_mass_moments(dual_v(), balance_condition_eq2(dual_v()))
+    for pose in POSES[:2]:
+        force, _ = _wrench(
+            robot, pose, jnp.array([0.7, -1.1, 0.0]), jnp.array([80.0, 60.0, 0]), branch
+        )
+        np.testing.assert_allclose(force, 0.0, atol=1e-10)
+
+
+def test_unbalanced_force_is_reduced_mass_times_acceleration():
+    """Without counter-masses: f = -m_red·a5, m_red = 2 μ*/l (eq 2 μ*; paper 3.279 kg)."""
+    from jaxbal.robots.dual_v_balancing import balance_condition_eq2
+
+    robot = dual_v(counter_masses=False)
+    m_red = 2.0 * balance_condition_eq2(robot)[0] / robot.l1[0]
+    acc = jnp.array([60.0, -45.0, 0.0])
+    force, _ = _wrench(robot, POSES[1], jnp.array([0.3, 0.2, 0.0]), acc)
+    np.testing.assert_allclose(force[:2], -m_red * acc[:2], rtol=1e-12)
+    assert abs(float(m_red) - 3.279) / 3.279 < 0.01
+
+
+def test_table1_residual_explained_by_rounding():
+    """Table 1 counter-masses: |f| ≤ (rounding of m_cm, p_cm) · 2/l · |a|."""
+    robot = dual_v()
+    acc = jnp.array([82.6, 0.0, 0.0])
+    force, _ = _wrench(robot, jnp.zeros(3), jnp.zeros(3), acc)
+    rounding = 0.0005 * 0.0575 + 7.983 * 0.00005  # half a unit in the last digit
+    assert float(jnp.linalg.norm(force)) <= 2 * rounding / 0.28 * 82.6
+
+
+def test_vmap_equals_loop():
+    robot = dual_v()
+    batched = jax.vmap(robot.inverse_kinematics)(POSES)
+    looped = jnp.stack([robot.inverse_kinematics(p) for p in POSES])
+    np.testing.assert_allclose(batched, looped, atol=1e-15)
+    qs, valid = jax.vmap(lambda p: robot.inverse_kinematics(p, return_valid=True))(
+        POSES.at[0, 0].set(0.5)
+    )
+    assert not bool(valid[0]) and bool(jnp.all(valid[1:]))
+
+
+def test_ik_gradients_finite_and_correct():
+    robot = dual_v()
+    check_grads(lambda u: robot.inverse_kinematics(u), (POSES[2],), order=2, modes=["fwd", "rev"])
+    grad = jax.grad(lambda r: _wrench(r, *MOTION)[0][0])(robot)
+    assert all(bool(jnp.all(jnp.isfinite(leaf))) for leaf in jax.tree_util.tree_leaves(grad))
+
+
+@pytest.mark.parametrize("balanced", [True, False])
+def test_paper_torques_match_virtual_work(balanced):
+    """Eqs (3)-(29) vs Lagrange over all bodies (autodiff): same platform effect
+    Jᵀτ, and the minimum-norm part equals the virtual-work torques (tol 1e-9 N·m)."""
+    robot = dual_v(counter_masses=balanced)
+    q, _, _ = joint_motion(robot, *MOTION)
+    tau_paper = paper_torques(robot, q, MOTION[1], MOTION[2])
+    tau_vw = virtual_work_torques(robot, *MOTION)
+    jac = robot.jacobian(q)
+    np.testing.assert_allclose(jac.T @ tau_paper, jac.T @ tau_vw, atol=1e-9)
+    ranged, _ = torque_split(robot, q, tau_paper)
+    np.testing.assert_allclose(ranged, tau_vw, atol=1e-9)
+
+
+def test_bearing_forces_sum_to_shaking_wrench():
+    """Σ(-F_A,i) = shaking force and Σ A_i×(-F_A,i) - Στ = shaking moment (tol 1e-9)."""
+    robot = dual_v()
+    q, qd, qdd = joint_motion(robot, *MOTION)
+    tau = paper_torques(robot, q, MOTION[1], MOTION[2])
+    force, moment = base_wrench_from_bearings(robot, bearing_forces(robot, *MOTION, tau), tau)
+    f_ref, m_ref = jaxbal.shaking_wrench(robot, q, qd, qdd)
+    np.testing.assert_allclose(force, f_ref[:2], atol=1e-9)
+    np.testing.assert_allclose(moment, m_ref[2], atol=1e-9)
