@@ -19,7 +19,8 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from jaxbal.momentum import _vee, body_com_positions
+from jaxbal._linalg import matvec, rmatvec
+from jaxbal.momentum import body_com_positions, body_velocities
 from jaxbal.robot import Robot
 from jaxbal.types import Array, Coordinates, Float, Scalar, Vec3
 
@@ -27,16 +28,10 @@ from jaxbal.types import Array, Coordinates, Float, Scalar, Vec3
 def kinetic_energy(robot: Robot, q: Coordinates, qd: Coordinates) -> Scalar:
     """Kinetic energy of all moving bodies [J]."""
     bodies = robot.mass_properties()
-
-    def poses(q_):
-        origins, rotations = robot.body_frames(q_)
-        return origins + jnp.einsum("nij,nj->ni", rotations, bodies.com), rotations
-
-    (_, rotations), (velocities, rotation_rates) = jax.jvp(poses, (q,), (qd,))
-    omega_world = _vee(jnp.einsum("nij,nkj->nik", rotation_rates, rotations))
-    omega_body = jnp.einsum("nji,nj->ni", rotations, omega_world)
+    _, rotations, velocities, omega_world = body_velocities(robot, q, qd)
+    omega_body = rmatvec(rotations, omega_world)
     translational = 0.5 * jnp.sum(bodies.mass * jnp.sum(velocities**2, axis=-1))
-    rotational = 0.5 * jnp.einsum("ni,nij,nj->", omega_body, bodies.inertia, omega_body)
+    rotational = 0.5 * jnp.sum(omega_body * matvec(bodies.inertia, omega_body))
     return translational + rotational
 
 
@@ -44,7 +39,7 @@ def potential_energy(robot: Robot, q: Coordinates, gravity: Vec3) -> Scalar:
     """Gravitational potential energy ``−Σ m_i g·c_i`` [J]."""
     bodies = robot.mass_properties()
     positions = body_com_positions(robot, q)
-    return -jnp.sum(bodies.mass * (positions @ jnp.asarray(gravity, dtype=float)))
+    return -jnp.sum(bodies.mass * (jnp.sum(positions * jnp.asarray(gravity, dtype=float), axis=-1)))
 
 
 def mass_matrix(robot: Robot, q: Coordinates) -> Float[Array, "dof dof"]:

@@ -20,8 +20,9 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from jaxbal._linalg import cross, matmul_transposed, matvec, rmatvec, vee, weighted_sum
 from jaxbal.robot import Robot
-from jaxbal.types import Coordinates, Scalar, Vec3
+from jaxbal.types import Coordinates, Points, Rotations, Scalar, Vec3
 
 
 def total_mass(robot: Robot) -> Scalar:
@@ -29,11 +30,27 @@ def total_mass(robot: Robot) -> Scalar:
     return jnp.sum(robot.mass_properties().mass)
 
 
-def body_com_positions(robot: Robot, q: Coordinates):
-    """``(n, 3)`` positions of every body's centre of mass in the base frame [m]."""
+def body_com_poses(robot: Robot, q: Coordinates) -> tuple[Points, Rotations]:
+    """Positions ``(n, 3)`` of every body's centre of mass [m] and the body rotations
+    ``(n, 3, 3)``, base frame."""
     bodies = robot.mass_properties()
     origins, rotations = robot.body_frames(q)
-    return origins + jnp.einsum("nij,nj->ni", rotations, bodies.com)
+    return origins + matvec(rotations, bodies.com), rotations
+
+
+def body_com_positions(robot: Robot, q: Coordinates) -> Points:
+    """``(n, 3)`` positions of every body's centre of mass in the base frame [m]."""
+    return body_com_poses(robot, q)[0]
+
+
+def body_velocities(robot: Robot, q: Coordinates, qd: Coordinates):
+    """COM positions, rotations, COM velocities ``(n, 3)`` [m/s] and angular velocities
+    ``(n, 3)`` [rad/s] of every body, base frame (one forward-mode pass)."""
+    (positions, rotations), (velocities, rotation_rates) = jax.jvp(
+        lambda q_: body_com_poses(robot, q_), (q,), (qd,)
+    )
+    omega = vee(matmul_transposed(rotation_rates, rotations))
+    return positions, rotations, velocities, omega
 
 
 def center_of_mass(robot: Robot, q: Coordinates) -> Vec3:
@@ -45,11 +62,7 @@ def center_of_mass(robot: Robot, q: Coordinates) -> Vec3:
     bodies = robot.mass_properties()
     positions = body_com_positions(robot, q)
     mass = jnp.sum(bodies.mass)
-    return jnp.einsum("n,ni->i", bodies.mass, positions) / jnp.maximum(mass, 1e-300)
-
-
-def _vee(skew):
-    return jnp.stack([skew[..., 2, 1], skew[..., 0, 2], skew[..., 1, 0]], -1)
+    return weighted_sum(bodies.mass, positions) / jnp.maximum(mass, 1e-300)
 
 
 def momentum(robot: Robot, q: Coordinates, qd: Coordinates) -> tuple[Vec3, Vec3]:
@@ -59,18 +72,12 @@ def momentum(robot: Robot, q: Coordinates, qd: Coordinates) -> tuple[Vec3, Vec3]
     ``L = Σ m_i c_i × v_i + R_i I_i R_iᵀ ω_i`` with ``ω_i = vee(Ṙ_i R_iᵀ)``.
     """
     bodies = robot.mass_properties()
-
-    def poses(q_):
-        origins, rotations = robot.body_frames(q_)
-        return origins + jnp.einsum("nij,nj->ni", rotations, bodies.com), rotations
-
-    (positions, rotations), (velocities, rotation_rates) = jax.jvp(poses, (q,), (qd,))
-    omega = _vee(jnp.einsum("nij,nkj->nik", rotation_rates, rotations))
-    linear = jnp.einsum("n,ni->i", bodies.mass, velocities)
-    inertia_world = jnp.einsum("nij,njk,nlk->nil", rotations, bodies.inertia, rotations)
-    spin = jnp.einsum("nij,nj->i", inertia_world, omega)
-    orbital = jnp.sum(bodies.mass[:, None] * jnp.cross(positions, velocities), axis=0)
-    return linear, orbital + spin
+    positions, rotations, velocities, omega = body_velocities(robot, q, qd)
+    linear = weighted_sum(bodies.mass, velocities)
+    # R I Rᵀ ω, as three matrix-vector products.
+    spin = matvec(rotations, matvec(bodies.inertia, rmatvec(rotations, omega)))
+    orbital = weighted_sum(bodies.mass, cross(positions, velocities))
+    return linear, orbital + jnp.sum(spin, axis=0)
 
 
 def shaking_wrench(
@@ -112,5 +119,7 @@ def shaking_wrench(
         bodies = robot.mass_properties()
         positions = body_com_positions(robot, q)
         force = force + jnp.sum(bodies.mass) * g
-        moment = moment + jnp.sum(bodies.mass[:, None] * jnp.cross(positions, g), axis=0)
+        moment = moment + weighted_sum(
+            bodies.mass, cross(positions, jnp.broadcast_to(g, positions.shape))
+        )
     return force, moment

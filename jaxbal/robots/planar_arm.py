@@ -44,6 +44,15 @@ def _unit(angle):
     return jnp.stack([jnp.cos(angle), jnp.sin(angle)], -1)
 
 
+def _partial_sums(values):
+    """Inclusive prefix sums along axis 0, unrolled (n is small and static): XLA's
+    ``cumsum`` becomes a reduce-window that does not fuse under ``vmap``."""
+    sums = [values[0]]
+    for k in range(1, values.shape[0]):
+        sums.append(sums[-1] + values[k])
+    return jnp.stack(sums)
+
+
 class PlanarArm(Robot):
     """A planar serial arm of ``n`` revolute links with a point payload at the tip.
 
@@ -124,7 +133,7 @@ class PlanarArm(Robot):
 
     def body_frames(self, q):
         check_shape("q", q, (self.n_links,))
-        theta = jnp.cumsum(q)
+        theta = _partial_sums(q)
         joints = self.joint_positions(q)
         origins2d = jnp.concatenate([joints[:-1], joints[:-1], joints[-1:]], axis=0)
         origins = jnp.concatenate([origins2d, jnp.zeros((origins2d.shape[0], 1))], axis=-1)
@@ -135,9 +144,9 @@ class PlanarArm(Robot):
 
     def joint_positions(self, q) -> Float[Array, "n+1 2"]:
         """Positions of O, A, B, … and the tip in the plane [m], shape ``(n + 1, 2)``."""
-        theta = jnp.cumsum(jnp.asarray(q, dtype=float))
+        theta = _partial_sums(jnp.asarray(q, dtype=float))
         steps = self.lengths[:, None] * _unit(theta)
-        return jnp.concatenate([jnp.zeros((1, 2)), jnp.cumsum(steps, axis=0)], axis=0)
+        return jnp.concatenate([jnp.zeros((1, 2)), _partial_sums(steps)], axis=0)
 
     def end_effector(self, q) -> Float[Array, "3"]:
         """Tip position ``(x, y)`` [m] and orientation φ = Σq [rad]."""
