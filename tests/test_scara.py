@@ -1,6 +1,7 @@
 """SCARA of Arakelian & Briot (2008): closed-form force balancing, optax co-design, and the
 reactionless end-effector rotation law, all checked with the generic shaking wrench."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -8,10 +9,11 @@ import pytest
 from jax.test_util import check_grads
 
 import jaxbal
-from jaxbal.planning import wrench_along
+from jaxbal.planning import wrench_along as _wrench_along
 from jaxbal.robots import scara_balancing as sb
 from jaxbal.robots.scara import PickAndPlace, Scara, joint_trajectory, scara
 
+wrench_along = eqx.filter_jit(_wrench_along)
 DEG = np.pi / 180
 DURATION = 0.3
 TIMES = jaxbal.sample_times(DURATION, 61)
@@ -171,7 +173,7 @@ def test_gradients():
     def force(design):
         return jaxbal.shaking_wrench(sb.with_counter_mass_design(robot, design), q, qd, qdd)[0]
 
-    check_grads(force, (jnp.array([1.0, 0.7, 0.2, 0.5]),), order=2, modes=("fwd", "rev"))
+    check_grads(force, (jnp.array([1.0, 0.7, 0.2, 0.5]),), order=1, modes=("fwd", "rev"))
 
     def turns(inertias):
         balanced = sb.force_balanced(eqx_replace_inertias(robot, inertias))
@@ -184,8 +186,6 @@ def test_gradients():
 
 
 def eqx_replace_inertias(robot, inertias):
-    import equinox as eqx
-
     return eqx.tree_at(lambda r: r.inertias, robot, inertias)
 
 

@@ -62,9 +62,11 @@ __all__ = [
     "counter_mass_design",
     "eq8_orientation",
     "force_balanced",
+    "merged_links",
     "move_samples",
     "reactionless_orientation",
     "reactionless_turns",
+    "residual_force_ratio",
     "with_counter_mass_design",
 ]
 
@@ -147,6 +149,20 @@ def force_balanced(robot: Scara, solve_for: str = "masses", vertical: bool = Tru
         robot,
         (masses, distances, m_v),
     )
+
+
+def merged_links(robot: Scara) -> tuple[Float[Array, "3"], Float[Array, "3"], Float[Array, "3"]]:
+    """Each link merged with its counter-mass: masses [kg], signed COM offsets [m] and
+    axial inertias about the merged COM [kg·m²] (the form the paper prints, §3)."""
+    mass = robot.masses + robot.counter_masses
+    moment = robot.masses * robot.com_offsets - robot.counter_masses * robot.counter_distances
+    offset = moment / jnp.maximum(mass, 1e-300)
+    about_joint = (
+        robot.inertias
+        + robot.masses * robot.com_offsets**2
+        + robot.counter_masses * robot.counter_distances**2
+    )
+    return mass, offset, about_joint - mass * offset**2
 
 
 def angular_momentum_coefficients(robot: Scara) -> Float[Array, "3"]:
@@ -260,7 +276,12 @@ def added_inertia(robot: Scara, design: Float[Array, "4"]) -> Scalar:
 
 def move_samples(trajectories: Sequence[Callable], durations: Sequence, count: int = 64):
     """Exact ``(q, q̇, q̈)`` at ``count`` instants of each trajectory ``t ↦ q`` on
-    ``[0, T]``, stacked: each ``(len(trajectories)·count, 4)``."""
+    ``[0, T]``, stacked: each ``(len(trajectories)·count, 4)`` (jit-compiled)."""
+    return _move_samples(list(trajectories), [jnp.asarray(T, float) for T in durations], count)
+
+
+@eqx.filter_jit
+def _move_samples(trajectories, durations, count):
     pairs = zip(trajectories, durations, strict=True)
     parts = [sample(path, sample_times(duration, count)) for path, duration in pairs]
     return tuple(jnp.concatenate([p[k] for p in parts]) for k in range(3))
@@ -269,6 +290,14 @@ def move_samples(trajectories: Sequence[Callable], durations: Sequence, count: i
 def _mean_square_force(robot: Scara, samples) -> Scalar:
     forces = jax.vmap(lambda q, qd, qdd: shaking_wrench(robot, q, qd, qdd)[0])(*samples)
     return jnp.mean(jnp.sum(forces**2, axis=-1))
+
+
+@eqx.filter_jit
+def residual_force_ratio(robot: Scara, design: Float[Array, "4"], samples) -> Scalar:
+    """RMS shaking force of ``design`` over the samples, relative to the bare robot [-]."""
+    bare = with_counter_mass_design(robot, jnp.zeros(4))
+    balanced = with_counter_mass_design(robot, design)
+    return jnp.sqrt(_mean_square_force(balanced, samples) / _mean_square_force(bare, samples))
 
 
 def codesign_loss(roots, robot: Scara, samples, weights) -> Scalar:
