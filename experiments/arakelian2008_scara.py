@@ -90,7 +90,7 @@ def run(ctx) -> Result:
         for eq, k, moment in (("(2)", 1, printed_moments[1]), ("(3)", 2, printed_moments[0])):
             ratio = moment / (moment + residual[k])
             table.add(
-                "printed design", f"eq {eq}: m_i|l_OiSi| / required, {label}", ratio, "-", 1.0
+                "printed design", f"eq {eq}: m_i·abs(l_OiSi) / required, {label}", ratio, "-", 1.0
             )
     # The printed design made exact: offsets from (2)-(3) with M3 = m3 + m_v.
     exact = printed_robot((0.0, 0.0), 0.5)
@@ -112,18 +112,18 @@ def run(ctx) -> Result:
     }
     wrenches = {name: wrench_along(r, path, times) for name, (r, path) in cases.items()}
     for name, (force, moment) in wrenches.items():
-        table.add(name, "peak |f|", peak_norm(force), "N")
-        table.add(name, "peak |m_z|", peak_abs(moment[:, 2]), "N·m")
-        table.add(name, "peak |m_x|, |m_y|", peak_abs(moment[:, :2]), "N·m")
+        table.add(name, "max ‖f‖", peak_norm(force), "N")
+        table.add(name, "max abs(m_z)", peak_abs(moment[:, 2]), "N·m")
+        table.add(name, "max abs(m_x), abs(m_y)", peak_abs(moment[:, :2]), "N·m")
     force0, moment0 = wrenches["unbalanced"]
     for name in ("fully balanced (printed)", "fully balanced (ours)"):
         force, moment = wrenches[name]
-        table.add(name, "peak |f| / unbalanced", peak_norm(force) / peak_norm(force0), "-")
-        table.add(name, "peak |m| / unbalanced", peak_norm(moment) / peak_norm(moment0), "-")
+        table.add(name, "max ‖f‖ / unbalanced", peak_norm(force) / peak_norm(force0), "-")
+        table.add(name, "max ‖m‖ / unbalanced", peak_norm(moment) / peak_norm(moment0), "-")
     mz0 = peak_abs(moment0[:, 2])
     for name in ("force-balanced (printed)", "force-balanced (ours)"):
         factor = peak_abs(wrenches[name][1][:, 2]) / mz0
-        table.add(name, "moment-increase factor (peak |m_z|)", factor, "-", PAPER_MOMENT_FACTOR)
+        table.add(name, "moment-increase factor (max abs m_z)", factor, "-", PAPER_MOMENT_FACTOR)
     joint_inertia_variant = printed_robot(exact_offsets, 0.5)
     joint_inertia_variant = Scara(
         paper_fb.lengths,
@@ -137,7 +137,7 @@ def run(ctx) -> Result:
     )
     table.add(
         "force-balanced (printed, I_i about the joints)",
-        "moment-increase factor (peak |m_z|)",
+        "moment-increase factor (max abs m_z)",
         peak_abs(moment_j[:, 2]) / mz0,
         "-",
         PAPER_MOMENT_FACTOR,
@@ -249,7 +249,7 @@ y = 0.2 m, φ 83° → 157°, quintic, 0.3 s) plus an assumed 25 mm lift-and-ret
 end-effector (`z = 0.025·64u³(1−u)³`; the paper's "25 × 300 mm" cycle without its
 timing), so that the vertical force and the counterweight of Fig 5 are exercised.
 Working mode +1 (sin θ2 > 0): then the paper's φ_i = 83° and φ_f = 157° are the link-2
-angles θ1 + θ2 at both ends (83.06° and 157.18°), i.e. θ3 ≈ 0 there. Link inertias are
+angles θ1 + θ2 at both ends (83.06° and 156.80°), i.e. θ3 ≈ 0 there. Link inertias are
 about each link's own COM; all horizontal links in the plane z = 0 (link heights would add
 moments about x and y that the paper's planar model ignores). The vertical counterweight is
 a point mass on the O3 axis moving by −d4.
