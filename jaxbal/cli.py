@@ -35,5 +35,20 @@ def list_experiments():
         typer.echo(f"{experiment.name:28s} {experiment.title}")
 
 
+@app.command("export-mjcf")
+def export_mjcf(
+    robot: str = typer.Argument(..., help="constructor in jaxbal.robots, e.g. planar_2r, scara"),
+    gravity: float = typer.Option(0.0, help="gravity along -z [m/s²] (0: none, as in the papers)"),
+):
+    """Print the MJCF (MuJoCo XML) of a jaxbal robot with its nominal parameters."""
+    import jaxbal
+    from jaxbal.mjcf import to_mjcf
+
+    constructor = getattr(jaxbal.robots, robot, None)
+    if constructor is None or not callable(constructor):
+        raise typer.BadParameter(f"unknown robot {robot!r}; try one of {jaxbal.robots.__all__}")
+    typer.echo(to_mjcf(constructor(), gravity=(0.0, 0.0, -abs(gravity))))
+
+
 if __name__ == "__main__":
     app()
