@@ -47,7 +47,7 @@ def export_mjcf(
     constructor = getattr(jaxbal.robots, robot, None)
     if constructor is None or not callable(constructor):
         raise typer.BadParameter(f"unknown robot {robot!r}; try one of {jaxbal.robots.__all__}")
-    typer.echo(to_mjcf(constructor(), gravity=(0.0, 0.0, -abs(gravity))))
+    typer.echo(to_mjcf(constructor(), gravity=(0.0, 0.0, 0.0 - abs(gravity))))
 
 
 if __name__ == "__main__":
