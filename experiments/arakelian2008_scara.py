@@ -18,6 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import jaxbal  # noqa: E402
+from jaxbal.mjx import mujoco_base_reaction  # noqa: E402
 from jaxbal.planning import peak_norm  # noqa: E402
 from jaxbal.planning import wrench_along as _wrench_along  # noqa: E402
 from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
@@ -42,6 +43,7 @@ PRINTED = {"m1": 6.2, "m2": 4.8, "l_O1S1": -0.117, "l_O2S2": -0.047, "I1": 0.175
 PAPER_MOMENT_FACTOR = 3.0  # §3: "increased by a factor 3"
 
 wrench_along = eqx.filter_jit(_wrench_along)
+sample_jit = eqx.filter_jit(jaxbal.sample)
 
 
 def printed_robot(offsets, vertical_counterweight):
@@ -120,6 +122,21 @@ def run(ctx) -> Result:
         force, moment = wrenches[name]
         table.add(name, "max ‖f‖ / unbalanced", peak_norm(force) / peak_norm(force0), "-")
         table.add(name, "max ‖m‖ / unbalanced", peak_norm(moment) / peak_norm(moment0), "-")
+    # Independent check: MuJoCo C inverse dynamics on a tree built from the lengths.
+    states = sample_jit(cases["fully balanced (printed)"][1], times)
+    mj_force, mj_moment = mujoco_base_reaction(paper_fb, *states)
+    table.add(
+        "MuJoCo C, fully balanced (printed)",
+        "max ‖f‖ / unbalanced",
+        np.max(np.linalg.norm(mj_force, axis=-1)) / peak_norm(force0),
+        "-",
+    )
+    table.add(
+        "MuJoCo C, fully balanced (printed)",
+        "max ‖m‖ / unbalanced",
+        np.max(np.linalg.norm(mj_moment, axis=-1)) / peak_norm(moment0),
+        "-",
+    )
     mz0 = peak_abs(moment0[:, 2])
     for name in ("force-balanced (printed)", "force-balanced (ours)"):
         factor = peak_abs(wrenches[name][1][:, 2]) / mz0
@@ -215,7 +232,7 @@ def _plot_rotation_law(ctx, times, paper_fb, ours):
         ("eq (8) as printed", paper_fb, sb.eq8_orientation, ":"),
     ):
         path = sb.ReactionlessTrajectory(robot, PAPER_MOVE, law=law)
-        q, qd, qdd = jaxbal.sample(path, times)
+        q, qd, qdd = sample_jit(path, times)
         for axis, values in zip(axes, (q[:, 2], qd[:, 2], qdd[:, 2]), strict=True):
             axis.plot(times, values, linestyle=style, label=label)
     for axis, name in zip(axes, ("θ3 [rad]", "θ̇3 [rad/s]", "θ̈3 [rad/s²]"), strict=True):
@@ -279,7 +296,8 @@ given); our moments are about O1, from the generic `shaking_wrench`.
 **Rotation law.** For a force-balanced SCARA, L_z = J_1 θ̇1 + J_2 θ̇12 + J_3 φ̇ exactly, so
 L_z = 0 integrates in closed form, φ = φ_0 − [J_1 Δθ1 + J_2 Δθ12]/J_3: no quadrature, no
 drift, and the wrench of the fully balanced robot vanishes to round-off (≈1e-14 of the
-unbalanced one, checked with the generic `shaking_wrench`, not with eq 7). Eq (8) as
+unbalanced one, checked with the generic `shaking_wrench`, not with eq 7, and ≈1e-11 with
+MuJoCo C's inverse dynamics on a kinematic tree built from the link lengths). Eq (8) as
 printed, with the links' own inertias I_i instead of J_i, leaves about half the moment
 (it omits the m·l² terms of the masses carried at O2 and O3). Net rotation on the paper's
 move: −8.5 turns of φ (−8.7 of θ3) with the printed design, −6.9 (−7.1) with ours; the paper

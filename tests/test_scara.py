@@ -168,13 +168,15 @@ def test_gradients():
     # Reference: jax.test_util.check_grads (finite differences), forward and reverse.
     robot = general_scara()
     move = paper_move()
-    q, qd, qdd = jaxbal.time_derivatives(joint_trajectory(robot, move), 0.11)
+    q, qd, qdd = eqx.filter_jit(jaxbal.time_derivatives)(joint_trajectory(robot, move), 0.11)
 
+    @jax.jit
     def force(design):
         return jaxbal.shaking_wrench(sb.with_counter_mass_design(robot, design), q, qd, qdd)[0]
 
     check_grads(force, (jnp.array([1.0, 0.7, 0.2, 0.5]),), order=1, modes=("fwd", "rev"))
 
+    @jax.jit
     def turns(inertias):
         balanced = sb.force_balanced(eqx_replace_inertias(robot, inertias))
         return sb.reactionless_turns(balanced, move, DURATION)[0]
@@ -235,3 +237,29 @@ def test_invalid_parameters_raise():
                 counter_distances=[0.0, 0.1, 0.1],
             )
         )
+
+
+def test_mujoco_confirms_wrench_and_reactionless_motion(unbalanced_wrench):
+    # Reference: MuJoCo C inverse dynamics on a tree built from the lengths
+    # (jaxbal.robots.scara.scara_tree), 1e-9 relative; gravity included.
+    from jaxbal.mjx import mujoco_base_reaction
+
+    robot = sb.force_balanced(general_scara())
+    robot = sb.with_counter_mass_design(robot, 1.1 * sb.counter_mass_design(robot))
+    rng = np.random.default_rng(0)
+    q, qd, qdd = rng.normal(size=(3, 6, 4)) * np.array([1.0, 3.0, 30.0])[:, None, None]
+    gravity = np.array([0.3, -1.0, -9.81])
+    force, moment = mujoco_base_reaction(robot, q, qd, qdd, gravity=gravity)
+    ref_force, ref_moment = jax.jit(
+        jax.vmap(lambda a, b, c: jaxbal.shaking_wrench(robot, a, b, c, gravity=gravity))
+    )(q, qd, qdd)
+    np.testing.assert_allclose(force, ref_force, atol=1e-9 * np.max(np.abs(ref_force)))
+    np.testing.assert_allclose(moment, ref_moment, atol=1e-9 * np.max(np.abs(ref_moment)))
+    # The fully balanced robot on the paper's move: MuJoCo sees no reaction either.
+    balanced = sb.force_balanced(scara())
+    path = sb.ReactionlessTrajectory(balanced, paper_move())
+    states = eqx.filter_jit(jaxbal.sample)(path, TIMES[::3])
+    force, moment = mujoco_base_reaction(balanced, *states)
+    forces0, moments0 = unbalanced_wrench
+    assert np.max(np.abs(force)) < 1e-9 * float(jnp.max(jnp.abs(forces0)))
+    assert np.max(np.abs(moment)) < 1e-9 * float(jnp.max(jnp.abs(moments0)))
