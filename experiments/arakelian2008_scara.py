@@ -46,14 +46,14 @@ wrench_along = eqx.filter_jit(_wrench_along)
 sample_jit = eqx.filter_jit(jaxbal.sample)
 
 
-def printed_robot(offsets, vertical_counterweight):
+def printed_robot(offsets, vertical_counterweight, inertias=(PRINTED["I1"], PRINTED["I2"])):
     """The printed balanced links (counter-masses merged into m_i, l_OiSi, I_i)."""
     base = scara()
     return Scara(
         base.lengths,
         [offsets[0], offsets[1], 0.0],
         [PRINTED["m1"], PRINTED["m2"], base.masses[2]],
-        [PRINTED["I1"], PRINTED["I2"], base.inertias[2]],
+        [inertias[0], inertias[1], base.inertias[2]],
         vertical_counterweight=vertical_counterweight,
     )
 
@@ -141,14 +141,9 @@ def run(ctx) -> Result:
     for name in ("force-balanced (printed)", "force-balanced (ours)"):
         factor = peak_abs(wrenches[name][1][:, 2]) / mz0
         table.add(name, "moment-increase factor (max abs m_z)", factor, "-", PAPER_MOMENT_FACTOR)
-    joint_inertia_variant = printed_robot(exact_offsets, 0.5)
-    joint_inertia_variant = Scara(
-        paper_fb.lengths,
-        paper_fb.com_offsets,
-        paper_fb.masses,
-        paper_fb.inertias.at[:2].add(-paper_fb.masses[:2] * paper_fb.com_offsets[:2] ** 2),
-        vertical_counterweight=0.5,
-    )
+    # Variant: the printed I_1, I_2 read as inertias about the joints O1, O2.
+    about_com = jnp.array([PRINTED["I1"], PRINTED["I2"]]) - paper_fb.masses[:2] * exact_offsets**2
+    joint_inertia_variant = printed_robot(exact_offsets, 0.5, inertias=about_com)
     _, moment_j = wrench_along(
         joint_inertia_variant, joint_trajectory(joint_inertia_variant, PAPER_MOVE), times
     )
