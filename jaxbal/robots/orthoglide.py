@@ -1,5 +1,356 @@
-"""Placeholder: filled in by the orthoglide work (see the issue). Not yet implemented."""
+"""The Orthoglide, a 3-DOF translational parallel robot (Geng, Arakelian, Chablat & Lemoine 2021).
+
+Three identical PRPaR legs: an actuated slider moving along base axis i (input ρ_i),
+a revolute joint, a parallelogram of length L and a revolute joint to the platform
+point P = (p_x, p_y, p_z), which carries the payload. The platform only translates.
+
+=====================  ============  =====  ==============================================
+parameter              nominal       unit   source / note
+=====================  ============  =====  ==============================================
+L (parallelogram)      0.31          m      §3
+s_x = s_y = s_z        +1            --     §3, eq (1) configuration indices
+m_par  (each of 3)     0.396         kg     §3 "m_1"; eq (6) mass of the parallelograms
+m_sl   (each of 3)     0.248         kg     §3 "m_2"; eq (6) mass of the sliders
+m_P    (platform P)    0.1           kg     §3 "m_3"
+l (slider offset)      0.0           m      not given; S(t) and F_sh do not depend on it
+I_par  (transverse)    m_par·L²/12   kg·m²  slender-bar assumption (not given)
+payload                0 … 5         kg     §3.2, point mass at P
+=====================  ============  =====  ==============================================
+
+**Which mass is which.** Eq (6) multiplies the parallelogram term ``0.5(ρ+3p)`` by
+``m_1`` and the slider term ``(ρ+l)`` by ``m_2``, while §3 calls 0.396 kg the slider
+and 0.248 kg the parallelogram. Only the assignment *parallelogram = 0.396 kg,
+slider = 0.248 kg* reproduces the paper's own designed COM acceleration (38.72 vs
+38.7 m/s²; the other assignment gives 34.3 m/s²) and Table 1 (within 0.4 %). So eq
+(6) is right and §3 swaps the words; jaxbal uses the eq (6) meaning.
+
+**The offset l.** The COM displacement D, hence a_com and the shaking force, do not
+depend on l (it adds the constant m_sl·l/M to every component of S). l only moves the
+absolute COM and the sliders' lever arms in the shaking moment about a fixed point.
+The default l = 0 puts the slider COM on its axis; see the experiment for the fit of
+Table 2.
+
+Coordinates: ``q = (ρ_x, ρ_y, ρ_z, p_x, p_y, p_z)`` [m], the inputs followed by the
+platform point, as returned by :meth:`Orthoglide.inverse_kinematics`. Bodies (in
+order): 3 sliders (translate along axis i; frame at B_i, COM at (A_i+B_i)/2), 3
+parallelograms (slender bars B_iC_i, frame at B_i rotated by the minimal rotation
+taking the home direction −e_i onto (P−B_i)/L, COM at the mid-point), the platform
+joint P (point mass m_P) and the payload (point mass at P).
+
+References:
+    Geng, J., Arakelian, V., Chablat, D., Lemoine, P. (2021). Balancing of the
+    Orthoglide taking into account its varying payload. Robotics 10(1), 30.
+    Eqs (1), (4)-(7) and §3. Pashkevich, Chablat & Wenger (2006), Robotica 24(1),
+    direct kinematics.
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+
+from jaxbal.implicit import newton_solve
+from jaxbal.momentum import center_of_mass
+from jaxbal.planning import peak_norm, wrench_along
+from jaxbal.robot import Bodies, Robot, concatenate, point_masses
+from jaxbal.types import Array, Float
+from jaxbal.validation import check_nonnegative, check_shape, is_traced, raise_if_invalid
+
+__all__ = ["Orthoglide", "orthoglide", "shaking_peaks", "switching_times"]
+
+_EYE = jnp.eye(3)
+# A_i - B_i = l * _SLIDER_DIRECTIONS[i]  (§2.2: A_1 = (ρ_x + l, 0, l), …)
+_SLIDER_DIRECTIONS = jnp.array([[1.0, 0.0, 1.0], [1.0, 1.0, 0.0], [0.0, 1.0, 1.0]])
 
 
-def orthoglide(*args, **kwargs):
-    raise NotImplementedError("jaxbal.robots.orthoglide is not implemented yet")
+def _skew(v):
+    zero = jnp.zeros_like(v[..., 0])
+    return jnp.stack(
+        [
+            jnp.stack([zero, -v[..., 2], v[..., 1]], -1),
+            jnp.stack([v[..., 2], zero, -v[..., 0]], -1),
+            jnp.stack([-v[..., 1], v[..., 0], zero], -1),
+        ],
+        -2,
+    )
+
+
+def _minimal_rotation(e0, d):
+    """``(..., 3, 3)`` rotation taking unit ``e0`` onto unit ``d`` about ``e0 × d``.
+
+    Smooth for ``e0·d > −1`` (the parallelograms never turn by 180° in the workspace).
+    """
+    v = jnp.cross(e0, d)
+    c = jnp.sum(e0 * d, -1)[..., None, None]
+    k = _skew(v)
+    return _EYE + k + (k @ k) / jnp.maximum(1.0 + c, 1e-12)
+
+
+def _com_residual(p, params):
+    """Eq (6) with eq (1): ``S(ρ(p), p) − S_target`` for the Newton solve of the COM IK."""
+    robot, target, mode = params
+    root = jnp.sqrt(jnp.maximum(robot._radicands(p), 1e-30))
+    q = jnp.concatenate([p + mode * root, p])
+    return center_of_mass(robot, q) - target
+
+
+def _check_mode(mode) -> None:
+    if mode not in (1, -1):
+        raise ValueError(f"mode (configuration index s of eq (1)) must be +1 or -1, got {mode}")
+
+
+class Orthoglide(Robot):
+    """The Orthoglide with a point payload at P (see the module docstring).
+
+    Attributes:
+        length: parallelogram length L [m].
+        slider_offset: offset l of the slider point A_i [m].
+        parallelogram_mass: mass of each parallelogram [kg] (eq (6) ``m_1``).
+        slider_mass: mass of each slider [kg] (eq (6) ``m_2``).
+        platform_mass: mass of the joint P [kg] (``m_3``).
+        parallelogram_inertia: transverse inertia of each parallelogram about its COM
+            (slender bar, no axial inertia) [kg·m²].
+        payload: payload mass at P [kg].
+    """
+
+    length: Float[Array, ""]
+    slider_offset: Float[Array, ""]
+    parallelogram_mass: Float[Array, ""]
+    slider_mass: Float[Array, ""]
+    platform_mass: Float[Array, ""]
+    parallelogram_inertia: Float[Array, ""]
+    payload: Float[Array, ""]
+
+    def __init__(
+        self,
+        length=0.31,
+        slider_offset=0.0,
+        parallelogram_mass=0.396,
+        slider_mass=0.248,
+        platform_mass=0.1,
+        parallelogram_inertia=None,
+        payload=0.0,
+    ):
+        self.length = jnp.asarray(length, dtype=float)
+        self.slider_offset = jnp.asarray(slider_offset, dtype=float)
+        self.parallelogram_mass = jnp.asarray(parallelogram_mass, dtype=float)
+        self.slider_mass = jnp.asarray(slider_mass, dtype=float)
+        self.platform_mass = jnp.asarray(platform_mass, dtype=float)
+        if parallelogram_inertia is None:
+            parallelogram_inertia = self.parallelogram_mass * self.length**2 / 12.0
+        self.parallelogram_inertia = jnp.asarray(parallelogram_inertia, dtype=float)
+        self.payload = jnp.asarray(payload, dtype=float)
+        for name in (
+            "length",
+            "slider_offset",
+            "parallelogram_mass",
+            "slider_mass",
+            "platform_mass",
+            "parallelogram_inertia",
+            "payload",
+        ):
+            check_shape(name, getattr(self, name), ())
+        for name in (
+            "length",
+            "parallelogram_mass",
+            "slider_mass",
+            "platform_mass",
+            "parallelogram_inertia",
+            "payload",
+        ):
+            check_nonnegative(f"Orthoglide.{name}", getattr(self, name))
+
+    @property
+    def dof(self) -> int:
+        return 6
+
+    # --- the two methods every robot provides --------------------------------------
+
+    def mass_properties(self) -> Bodies:
+        ones = jnp.ones(3)
+        sliders = Bodies(
+            mass=self.slider_mass * ones,
+            com=0.5 * self.slider_offset * _SLIDER_DIRECTIONS,
+            inertia=jnp.zeros((3, 3, 3)),  # pure translation: no spin moment
+            names=("slider_x", "slider_y", "slider_z"),
+        )
+        home = -_EYE  # home direction of B_i -> C_i
+        parallelograms = Bodies(
+            mass=self.parallelogram_mass * ones,
+            com=0.5 * self.length * home,
+            inertia=self.parallelogram_inertia * (_EYE[None] - home[:, :, None] * home[:, None]),
+            names=("parallelogram_x", "parallelogram_y", "parallelogram_z"),
+        )
+        points = point_masses(
+            jnp.stack([self.platform_mass, self.payload]), ("platform", "payload")
+        )
+        return concatenate(sliders, parallelograms, points)
+
+    def body_frames(self, q):
+        check_shape("q", q, (6,))
+        q = jnp.asarray(q, dtype=float)
+        rho, p = q[:3], q[3:]
+        b = rho[:, None] * _EYE  # B_i = ρ_i e_i
+        d = (p[None, :] - b) / self.length
+        rotations = _minimal_rotation(-_EYE, d)
+        origins = jnp.concatenate([b, b, jnp.stack([p, p])], axis=0)
+        rot = jnp.concatenate(
+            [jnp.broadcast_to(_EYE, (3, 3, 3)), rotations, _EYE[None], _EYE[None]]
+        )
+        return origins, rot
+
+    # --- kinematics ------------------------------------------------------------------
+
+    def _radicands(self, p):
+        """``L² − p_j² − p_k²`` for the three legs (must be > 0), eq (1)."""
+        sq = p**2
+        return self.length**2 - (jnp.sum(sq) - sq)
+
+    def inverse_kinematics(self, p, mode: int = 1, return_valid: bool = False):
+        """Inputs ρ and all coordinates ``q = (ρ, p)`` for the platform point ``p``, eq (1).
+
+        Args:
+            p: ``(3,)`` position of P [m].
+            mode: the configuration index ``s_x = s_y = s_z`` of eq (1), ``+1`` (the
+                paper's, §3) or ``−1``.
+            return_valid: also return the validity mask (all radicands > 0).
+
+        Returns:
+            ``q (6,)`` [m] (and ``valid``).
+
+        Raises:
+            ValueError: eagerly, when ``p`` is out of reach of a leg (‖p_⊥‖ ≥ L).
+        """
+        p = jnp.asarray(p, dtype=float)
+        check_shape("p", p, (3,))
+        _check_mode(mode)
+        radicand = self._radicands(p)
+        valid = jnp.all(radicand > 0.0)
+        raise_if_invalid(valid, "platform point out of reach of the Orthoglide legs", p)
+        rho = p + mode * jnp.sqrt(jnp.maximum(radicand, 1e-30))
+        q = jnp.concatenate([rho, p])
+        return (q, valid) if return_valid else q
+
+    def forward_kinematics(self, rho, return_valid: bool = False):
+        """Platform point ``p (3,)`` [m] from the inputs ``ρ (3,)`` [m], closed form.
+
+        Subtracting the leg constraints ``(ρ_i − p_i)² + Σ_{j≠i} p_j² = L²`` gives
+        ``p_y, p_z`` affine in ``p_x``; the remaining quadratic has two roots (two
+        assembly modes); the smaller ``p_x`` is the working mode (``p = 0`` at ``ρ = L``).
+
+        Raises:
+            ValueError: eagerly, when ρ is not assemblable (negative discriminant) or
+                an input is not positive.
+        """
+        rho = jnp.asarray(rho, dtype=float)
+        check_shape("rho", rho, (3,))
+        rx, ry, rz = rho
+        by, bz = rx / ry, rx / rz
+        ay, az = (ry**2 - rx**2) / (2.0 * ry), (rz**2 - rx**2) / (2.0 * rz)
+        qa = 1.0 + by**2 + bz**2
+        qb = -2.0 * rx + 2.0 * (ay * by + az * bz)
+        qc = rx**2 + ay**2 + az**2 - self.length**2
+        disc = qb**2 - 4.0 * qa * qc
+        valid = (disc >= 0.0) & jnp.all(rho > 0.0)
+        raise_if_invalid(valid, "inputs rho not assemblable by the Orthoglide", rho)
+        root = jnp.sqrt(jnp.maximum(disc, 1e-30))
+        # smaller root (−qb − √Δ)/(2qa), in the cancellation-free form 2qc/(−qb + √Δ)
+        # (qb < 0 in the workspace).
+        px = 2.0 * qc / (-qb + root)
+        p = jnp.stack([px, ay + by * px, az + bz * px])
+        return (p, valid) if return_valid else p
+
+    # --- centre of mass ---------------------------------------------------------------
+
+    def com_of_point(self, p):
+        """Total COM ``S (3,)`` [m] for the platform point ``p``: eq (6) (payload included)."""
+        return center_of_mass(self, self.inverse_kinematics(p))
+
+    def com_inverse_kinematics(
+        self, com, free=None, mode: int = 1, return_valid: bool = False, guess=None
+    ):
+        """All coordinates ``q = (ρ, p)`` that put the total COM at ``com``.
+
+        Solves eq (6) with eq (1) for ``p`` by Newton's method
+        (:func:`jaxbal.implicit.newton_solve`); the result is differentiable with
+        respect to ``com`` and to every parameter of the robot (masses, payload,
+        lengths) by implicit differentiation, to any order.
+
+        Args:
+            com: ``(3,)`` target centre of mass [m].
+            free: must be ``None`` (the Orthoglide has no free coordinate; the argument
+                keeps the signature of :class:`jaxbal.planning.ComLine`).
+            mode: configuration index of eq (1), ``+1`` or ``−1``.
+            return_valid: also return the validity mask (converged and reachable).
+            guess: ``(3,)`` initial platform point [m] (default: home, 0).
+
+        Raises:
+            ValueError: eagerly, when the target is not a COM of the robot.
+        """
+        com = jnp.asarray(com, dtype=float)
+        check_shape("com", com, (3,))
+        _check_mode(mode)
+        if free is not None:
+            raise ValueError("the Orthoglide has no free coordinate: pass free=None")
+        x0 = jnp.zeros(3) if guess is None else jnp.asarray(guess, dtype=float)
+
+        solution = newton_solve(
+            _com_residual,
+            x0,
+            (self, com, jnp.asarray(mode, dtype=float)),
+            throw=False,
+            what="Orthoglide COM inverse kinematics",
+        )
+        p = solution.value
+        reachable = jnp.all(self._radicands(p) > 0.0)
+        valid = solution.converged & reachable
+        if not is_traced(valid):
+            raise_if_invalid(valid, "COM target not reachable by the Orthoglide", com)
+        rho = p + mode * jnp.sqrt(jnp.maximum(self._radicands(p), 1e-30))
+        q = jnp.concatenate([rho, p])
+        return (q, valid) if return_valid else q
+
+
+def orthoglide(payload: float = 0.0, **overrides) -> Orthoglide:
+    """The Orthoglide prototype of LS2N as modelled by Geng et al. (2021), §3.
+
+    Args:
+        payload: payload mass at P [kg] (the paper uses 0 … 5).
+        **overrides: any other :class:`Orthoglide` field (e.g. ``slider_offset``).
+    """
+    return Orthoglide(payload=payload, **overrides)
+
+
+# --- evaluation along the plans of §3.1 -----------------------------------------------
+
+
+def switching_times(duration, count: int = 401) -> Float[Array, " t"]:
+    """``count`` equally spaced instants on ``[0, T]`` [s] plus the left limit at ``T/2``.
+
+    Profiles are right-continuous at the bang-bang switch ``T/2``; adding the instant
+    just before it makes the sampled maximum the true supremum of |F| and |M|.
+    """
+    duration = jnp.asarray(duration, dtype=float)
+    grid = jnp.linspace(0.0, 1.0, count)
+    return jnp.concatenate([grid, jnp.array([0.5 - 1e-9])]) * duration
+
+
+def shaking_peaks(robot: Robot, trajectory, times, reference=None, gravity=None):
+    """Peak shaking force and moment of ``robot`` along ``trajectory`` (Tables 1-4).
+
+    Args:
+        robot: the robot *as executed* (true masses and payload); the trajectory may
+            have been planned with another one (case 4 of §3.3).
+        trajectory: callable ``t -> q``, e.g. :class:`jaxbal.planning.ComLine`.
+        times: ``(t,)`` sampling instants [s] (see :func:`switching_times`).
+        reference: ``(3,)`` point about which the moment is taken [m] (default: the
+            base origin, the intersection of the prismatic axes).
+        gravity: optional ``(3,)`` gravity [m/s²] (default none, which reproduces Table 1).
+
+    Returns:
+        ``(max_t |F_sh| [N], max_t |M_sh| [N·m])``, differentiable (zero-safe norms).
+        The moment about ``c`` is ``M_O − c × F``.
+    """
+    force, moment = wrench_along(robot, trajectory, times, gravity)
+    if reference is not None:
+        moment = moment - jnp.cross(jnp.asarray(reference, dtype=float), force)
+    return peak_norm(force), peak_norm(moment)
