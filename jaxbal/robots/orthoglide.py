@@ -46,16 +46,19 @@ References:
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax.numpy as jnp
 
 from jaxbal.implicit import newton_solve
 from jaxbal.momentum import center_of_mass
-from jaxbal.planning import peak_norm, wrench_along
+from jaxbal.planning import EndEffectorLine, com_line, peak_norm, wrench_along
+from jaxbal.profiles import BangBang, Quintic
 from jaxbal.robot import Bodies, Robot, concatenate, point_masses
+from jaxbal.trajectory import StraightLine
 from jaxbal.types import Array, Float
 from jaxbal.validation import check_nonnegative, check_shape, is_traced, raise_if_invalid
 
-__all__ = ["Orthoglide", "orthoglide", "shaking_peaks", "switching_times"]
+__all__ = ["Orthoglide", "motion_cases", "orthoglide", "shaking_peaks", "switching_times"]
 
 _EYE = jnp.eye(3)
 # A_i - B_i = l * _SLIDER_DIRECTIONS[i]  (§2.2: A_1 = (ρ_x + l, 0, l), …)
@@ -321,6 +324,34 @@ def orthoglide(payload: float = 0.0, **overrides) -> Orthoglide:
 
 
 # --- evaluation along the plans of §3.1 -----------------------------------------------
+
+
+def motion_cases(robot: Orthoglide, start, end, duration, planned_payload=None) -> dict:
+    """The motion laws of §3.1 and §3.3 between two platform points: name ↦ ``t -> q``.
+
+    * ``case1``: P on the straight line, quintic profile;
+    * ``case2``: P on the straight line, bang-bang profile;
+    * ``case3``: total COM on the straight line, bang-bang (eqs (4), (7)), planned with
+      the robot's true payload;
+    * ``case4`` (only if ``planned_payload`` is given): the same COM plan made by a
+      planner that believes the payload is ``planned_payload`` [kg] (§3.3: the mass
+      error Δm = ``robot.payload − planned_payload`` is not taken into account).
+
+    Every plan is a pytree: ``jax.grad`` flows through it to the robot's parameters and
+    to ``planned_payload`` (through the implicit-differentiated COM inverse kinematics).
+    """
+    start = jnp.asarray(start, dtype=float)
+    end = jnp.asarray(end, dtype=float)
+    q_start, q_end = robot.inverse_kinematics(start), robot.inverse_kinematics(end)
+    cases = {
+        "case1": EndEffectorLine(robot, StraightLine(start, end, Quintic(), duration)),
+        "case2": EndEffectorLine(robot, StraightLine(start, end, BangBang(), duration)),
+        "case3": com_line(robot, q_start, q_end, BangBang(), duration, dims=3),
+    }
+    if planned_payload is not None:
+        planner = eqx.tree_at(lambda r: r.payload, robot, jnp.asarray(planned_payload, float))
+        cases["case4"] = com_line(planner, q_start, q_end, BangBang(), duration, dims=3)
+    return cases
 
 
 def switching_times(duration, count: int = 401) -> Float[Array, " t"]:
