@@ -54,6 +54,11 @@ BASE_MASS = 1e-12
 #: Names and types of the six base dofs, in qpos/qvel order.
 BASE_JOINTS = ("base_x", "base_y", "base_z", "base_rx", "base_ry", "base_rz")
 _BASE_TYPES = ("slide",) * 3 + ("hinge",) * 3
+#: Soft-constraint settings of the loop closures: ``solref = (time constant [s],
+#: damping ratio)``, ``solimp`` impedance (0.99..0.9999 over 1 mm). They only matter
+#: in forward simulation (inverse dynamics of consistent states gives no constraint
+#: force on the base); see :mod:`jaxbal.mjx_simulate`.
+CONNECT = {"solref": "0.002 1", "solimp": "0.99 0.9999 0.001 0.5 2"}
 
 
 class Joint(NamedTuple):
@@ -95,16 +100,20 @@ class TreeBody(NamedTuple):
 
 
 class Connect(NamedTuple):
-    """A ``connect`` equality (ball joint) closing a kinematic loop.
+    """A ``connect`` equality (spherical joint) closing a kinematic loop.
+
+    Written with two sites (``site1``/``site2``), so the joint centre is given on both
+    bodies and does not depend on MuJoCo's reference configuration ``qpos0``.
 
     Attributes:
-        body1, body2: the two bodies it joins.
-        anchor: ``(3,)`` the joint centre in ``body1``'s frame [m].
+        body1, anchor1: first body and the joint centre in its frame ``(3,)`` [m].
+        body2, anchor2: second body and the joint centre in its frame ``(3,)`` [m].
     """
 
     body1: str
+    anchor1: tuple[float, float, float]
     body2: str
-    anchor: tuple[float, float, float]
+    anchor2: tuple[float, float, float]
 
 
 class Tree(NamedTuple):
@@ -166,16 +175,40 @@ def has_tree(robot: Robot) -> bool:
     return _tree_builder.dispatch(type(robot)) is not _tree_builder.dispatch(object)
 
 
+def _quat_mul(a, b):
+    w1, v1 = a[0], a[1:]
+    w2, v2 = b[0], b[1:]
+    return jnp.concatenate([(w1 * w2 - v1 @ v2)[None], w1 * v2 + w2 * v1 + jnp.cross(v1, v2)])
+
+
 def tree_state(tree: Tree, q, qd, qdd):
     """``(qpos, qvel, qacc)`` of the tree joints (base dofs excluded) for jaxbal's
-    ``(q, q̇, q̈)``: ``qpos = c(q)``, ``qvel = c'(q) q̇``, ``qacc = c''(q)[q̇, q̇] + c'(q) q̈``
-    by nested ``jax.jvp`` (exact), unless ``tree.state`` is given."""
+    ``(q, q̇, q̈)``, unless ``tree.state`` is given.
+
+    ``qpos = c(q)``; a hinge/slide velocity is ``ċ = c'(q) q̇``; a ball joint's is its
+    angular velocity in the child frame, ``ω = 2 vec(Q* ⊗ Q̇)`` (MuJoCo's convention);
+    accelerations are their time derivatives. All by nested ``jax.jvp`` (exact).
+    """
     if tree.state is not None:
         return tree.state(q, qd, qdd)
     q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
+    types = [j.type for b in tree.bodies for j in b.joints]
 
     def velocity(q_, qd_):
-        return jax.jvp(tree.coordinates, (q_,), (qd_,))
+        qpos, rate = jax.jvp(tree.coordinates, (q_,), (qd_,))
+        if "ball" not in types:
+            return qpos, rate
+        pieces, i = [], 0
+        for kind in types:
+            if kind == "ball":
+                quat, quat_rate = qpos[i : i + 4], rate[i : i + 4]
+                conjugate = quat * jnp.array([1.0, -1.0, -1.0, -1.0])
+                pieces.append(2.0 * _quat_mul(conjugate, quat_rate)[1:])
+                i += 4
+            else:
+                pieces.append(rate[i : i + 1])
+                i += 1
+        return qpos, jnp.concatenate(pieces)
 
     (qpos, qvel), (_, qacc) = jax.jvp(velocity, (q, qd), (qd, qdd))
     return qpos, qvel, qacc
@@ -228,7 +261,8 @@ def prescribed_tree(robot: Robot) -> Tree:
     bodies = ()
     for name in robot.mass_properties().names:
         slides = tuple(
-            Joint(f"{name}_{a}", "slide", tuple(ax)) for a, ax in zip("xyz", np.eye(3), strict=True)
+            Joint(f"{name}_{a}", "slide", tuple(float(x) for x in ax))
+            for a, ax in zip("xyz", np.eye(3), strict=True)
         )
         bodies += (
             TreeBody(
@@ -292,6 +326,62 @@ def realisable_inertia(inertia, rtol: float = 1e-9):
     return moments + padding, axes, padding
 
 
+class Inertials(NamedTuple):
+    """What :func:`to_mjcf` writes for each jaxbal body (``mass_properties`` order).
+
+    Attributes:
+        mass: ``(n,)`` masses written [kg] (jaxbal's plus ``mass_floor``).
+        mass_floor: ``(n,)`` :data:`BASE_MASS` for a moving body (one with joints) whose
+            welded group is massless, else 0 [kg].
+        moments: ``(n, 3)`` principal moments written [kg·m²].
+        axes: ``(n, 3, 3)`` principal axes (columns) in the body frame.
+        padding: ``(n, 3)`` ``moments`` minus jaxbal's principal moments [kg·m²].
+    """
+
+    mass: np.ndarray
+    mass_floor: np.ndarray
+    moments: np.ndarray
+    axes: np.ndarray
+    padding: np.ndarray
+
+
+def mujoco_inertials(robot: Robot, tree: Tree) -> Inertials:
+    """Masses and inertias MuJoCo accepts, as close to jaxbal's as it allows.
+
+    Principal moments violating the triangle inequality are padded as in
+    :func:`realisable_inertia`; a moving body gets at least :data:`BASE_MASS` in each
+    principal moment, and :data:`BASE_MASS` of mass if it and the bodies welded to it
+    are massless (MuJoCo's ``mjMINVAL`` check); the induced error is ~1e-12 of the
+    body's acceleration [N] or angular acceleration [N·m].
+    """
+    bodies = robot.mass_properties()
+    mass = np.asarray(bodies.mass, dtype=float)
+    index = {name: i for i, name in enumerate(bodies.names)}
+    moving = {b.name for b in tree.bodies if b.joints}
+    welded = {}
+    for b in tree.bodies:
+        if not b.joints and b.parent is not None:
+            welded.setdefault(b.parent, []).append(b.name)
+
+    def group_mass(name):
+        own = mass[index[name]] if name in index else 0.0
+        return own + sum(group_mass(child) for child in welded.get(name, ()))
+
+    floor = np.zeros_like(mass)
+    moments, axes, padding = [], [], []
+    for i, name in enumerate(bodies.names):
+        m, a, p = realisable_inertia(np.asarray(bodies.inertia[i]))
+        if name in moving:
+            extra = np.maximum(BASE_MASS - m, 0.0)
+            m, p = m + extra, p + extra
+            if group_mass(name) <= 0.0:
+                floor[i] = BASE_MASS
+        moments.append(m)
+        axes.append(a)
+        padding.append(p)
+    return Inertials(mass + floor, floor, np.array(moments), np.array(axes), np.array(padding))
+
+
 def _quat_of(matrix) -> np.ndarray:
     return np.asarray(_matrix_to_quat(jnp.asarray(matrix, dtype=float)))
 
@@ -303,7 +393,14 @@ def _fmt(values) -> str:
     return " ".join(f"{float(v):.17g}" for v in np.atleast_1d(np.asarray(values, dtype=float)))
 
 
-def to_mjcf(robot: Robot, tree: Tree | None = None, gravity=None, model_name: str | None = None):
+def to_mjcf(
+    robot: Robot,
+    tree: Tree | None = None,
+    gravity=None,
+    model_name: str | None = None,
+    base_joints: bool = True,
+    timestep: float = 0.002,
+):
     """MJCF text of ``robot`` under the six-dof base (see the module docstring).
 
     Args:
@@ -311,6 +408,9 @@ def to_mjcf(robot: Robot, tree: Tree | None = None, gravity=None, model_name: st
         tree: its :class:`Tree`; default :func:`robot_tree` (with fallback).
         gravity: ``(3,)`` [m/s²], default zero.
         model_name: the ``<mujoco model=...>`` name.
+        base_joints: carry the robot on the six base dofs (for the base reaction);
+            ``False`` fixes the base to the world (for forward simulation).
+        timestep: the simulation time step [s].
 
     Returns:
         The XML string, loadable by ``mujoco.MjModel.from_xml_string`` and the viewer.
@@ -322,15 +422,17 @@ def to_mjcf(robot: Robot, tree: Tree | None = None, gravity=None, model_name: st
     tree = robot_tree(robot, fallback=True) if tree is None else tree
     bodies = robot.mass_properties()
     index = {name: i for i, name in enumerate(bodies.names)}
-    mass = np.asarray(bodies.mass, dtype=float)
     com = np.asarray(bodies.com, dtype=float)
-    inertia = np.asarray(bodies.inertia, dtype=float)
+    inertials = mujoco_inertials(robot, tree)
+    mass = inertials.mass
     gravity = np.zeros(3) if gravity is None else np.asarray(gravity, dtype=float)
     scale = float(np.max(np.abs([b.pos for b in tree.bodies]), initial=0.0)) or 0.1
 
     root = ET.Element("mujoco", model=model_name or type(robot).__name__)
     ET.SubElement(root, "compiler", angle="radian", inertiafromgeom="false", autolimits="true")
-    option = ET.SubElement(root, "option", gravity=_fmt(gravity), integrator="RK4")
+    option = ET.SubElement(
+        root, "option", gravity=_fmt(gravity), integrator="RK4", timestep=_fmt(timestep)
+    )
     ET.SubElement(option, "flag", contact="disable")
     default = ET.SubElement(root, "default")
     ET.SubElement(default, "geom", contype="0", conaffinity="0", group="1", rgba="0.4 0.6 0.8 1")
@@ -343,14 +445,12 @@ def to_mjcf(robot: Robot, tree: Tree | None = None, gravity=None, model_name: st
     for name, kind, axis in zip(
         BASE_JOINTS, _BASE_TYPES, np.concatenate([np.eye(3)] * 2), strict=True
     ):
-        ET.SubElement(base, "joint", name=name, type=kind, axis=_fmt(axis))
+        if base_joints:
+            ET.SubElement(base, "joint", name=name, type=kind, axis=_fmt(axis))
     ET.SubElement(base, "geom", type="sphere", size=_fmt(0.03 * scale), rgba="0.3 0.3 0.3 1")
 
+    _check_order(tree)
     elements = {None: base}
-    has_joints = {b.name: bool(b.joints) for b in tree.bodies}
-    children = {}
-    for b in tree.bodies:
-        children.setdefault(b.parent, []).append(b.name)
     for b in tree.bodies:
         if b.parent not in elements:
             raise ValueError(f"body {b.name!r}: parent {b.parent!r} is not defined before it")
@@ -361,14 +461,13 @@ def to_mjcf(robot: Robot, tree: Tree | None = None, gravity=None, model_name: st
         elements[b.name] = element
         if b.name in index:
             i = index[b.name]
-            moments, axes, _ = realisable_inertia(inertia[i])
             ET.SubElement(
                 element,
                 "inertial",
                 pos=_fmt(com[i]),
-                quat=_fmt(_quat_of(axes)),
+                quat=_fmt(_quat_of(inertials.axes[i])),
                 mass=_fmt(mass[i]),
-                diaginertia=_fmt(moments),
+                diaginertia=_fmt(inertials.moments[i]),
             )
         elif b.joints:  # helper body: the smallest mass MuJoCo accepts
             ET.SubElement(
@@ -400,12 +499,25 @@ def to_mjcf(robot: Robot, tree: Tree | None = None, gravity=None, model_name: st
                 size=_fmt(0.04 * scale),
                 rgba="0.8 0.3 0.3 1",
             )
-    _check_moving_mass(tree, index, mass, inertia, has_joints, children)
 
     if tree.connects:
         equality = ET.SubElement(root, "equality")
-        for c in tree.connects:
-            ET.SubElement(equality, "connect", body1=c.body1, body2=c.body2, anchor=_fmt(c.anchor))
+        for k, c in enumerate(tree.connects):
+            sites = []
+            for side, body, anchor in ((1, c.body1, c.anchor1), (2, c.body2, c.anchor2)):
+                if body not in elements:
+                    raise ValueError(f"connect {k}: unknown body {body!r}")
+                sites.append(f"connect{k}_{side}")
+                ET.SubElement(
+                    elements[body],
+                    "site",
+                    name=sites[-1],
+                    pos=_fmt(anchor),
+                    size=_fmt(0.01 * scale),
+                )
+            ET.SubElement(
+                equality, "connect", name=f"loop{k}", site1=sites[0], site2=sites[1], **CONNECT
+            )
     if tree.actuated:
         actuator = ET.SubElement(root, "actuator")
         for name in tree.actuated:
@@ -414,23 +526,47 @@ def to_mjcf(robot: Robot, tree: Tree | None = None, gravity=None, model_name: st
     return ET.tostring(root, encoding="unicode")
 
 
-def _check_moving_mass(tree, index, mass, inertia, has_joints, children):
-    """MuJoCo rejects a body with joints whose welded group has no mass: say so clearly."""
+def _check_order(tree: Tree) -> None:
+    """``tree.bodies`` must be in MuJoCo's depth-first order (it fixes the qpos order)."""
+    children = {}
+    for b in tree.bodies:
+        children.setdefault(b.parent, []).append(b.name)
 
-    def welded_mass(name):
-        own = mass[index[name]] if name in index else 0.0
-        return own + sum(
-            welded_mass(child) for child in children.get(name, ()) if not has_joints[child]
+    def visit(name):
+        return [name] + [n for child in children.get(name, ()) for n in visit(child)]
+
+    order = [n for child in children.get(None, ()) for n in visit(child)]
+    if order != [b.name for b in tree.bodies]:
+        raise ValueError(
+            "tree bodies must be listed depth-first (each body's subtree right after it), "
+            f"got {[b.name for b in tree.bodies]}, expected {order}"
         )
 
-    for b in tree.bodies:
-        if b.joints and welded_mass(b.name) <= 0.0:
-            raise ValueError(
-                f"body {b.name!r} moves on joints but it and the bodies welded to it have no "
-                "mass; MuJoCo cannot model it"
-            )
+
+#: Robots that ``jaxbal export-mjcf NAME`` knows: name -> (module, constructor).
+EXPORTABLE = {
+    "2r": ("jaxbal.robots.planar_arm", "planar_2r"),
+    "3r": ("jaxbal.robots.planar_arm", "planar_3r"),
+    "scara": ("jaxbal.robots.scara", "scara"),
+    "dual-v": ("jaxbal.robots.dual_v", "dual_v"),
+    "orthoglide": ("jaxbal.robots.orthoglide", "orthoglide"),
+}
 
 
-def export_mjcf(robot: Robot, gravity=None) -> str:
-    """MJCF of ``robot`` for ``jaxbal export-mjcf ROBOT > robot.xml`` (viewer-ready)."""
-    return to_mjcf(robot, gravity=gravity)
+def export_mjcf(robot: Robot | str, gravity=None, base_joints: bool = False) -> str:
+    """MJCF of ``robot`` (or a name of :data:`EXPORTABLE`) for
+    ``jaxbal export-mjcf ROBOT > robot.xml``, viewer-ready (``python -m mujoco.viewer
+    --mjcf robot.xml``). The nominal robot, base fixed unless ``base_joints``.
+
+    Raises:
+        ValueError: an unknown robot name.
+    """
+    if isinstance(robot, str):
+        import importlib
+
+        key = robot.lower().replace("_", "-")
+        if key not in EXPORTABLE:
+            raise ValueError(f"unknown robot {robot!r}; choose one of {sorted(EXPORTABLE)}")
+        module, constructor = EXPORTABLE[key]
+        robot = getattr(importlib.import_module(module), constructor)()
+    return to_mjcf(robot, gravity=gravity, base_joints=base_joints)

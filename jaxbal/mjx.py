@@ -41,7 +41,7 @@ import mujoco
 import numpy as np
 from mujoco import mjx
 
-from jaxbal.mjcf import BASE_MASS, Tree, realisable_inertia, robot_tree, to_mjcf, tree_state
+from jaxbal.mjcf import BASE_MASS, Tree, mujoco_inertials, robot_tree, to_mjcf, tree_state
 from jaxbal.momentum import shaking_wrench
 from jaxbal.robot import Robot
 from jaxbal.types import Coordinates, Vec3
@@ -51,6 +51,11 @@ from jaxbal.validation import check_shape
 @functools.lru_cache(maxsize=64)
 def _compile(xml: str) -> mujoco.MjModel:
     return mujoco.MjModel.from_xml_string(xml)
+
+
+@functools.partial(jax.jit, static_argnums=0)
+def _batched_state(tree: Tree, q, qd, qdd):
+    return jax.vmap(lambda a, b, c: tree_state(tree, a, b, c))(q, qd, qdd)
 
 
 class MujocoRobot(NamedTuple):
@@ -73,12 +78,15 @@ class MujocoRobot(NamedTuple):
         return self.state(q, jnp.zeros_like(q), jnp.zeros_like(q))[0]
 
     def state(self, q, qd, qdd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Full MuJoCo ``(qpos, qvel, qacc)`` for jaxbal ``(q, q̇, q̈)`` (one sample)."""
-        qpos, qvel, qacc = tree_state(self.tree, q, qd, qdd)
-        return (
-            np.concatenate([np.zeros(6), np.asarray(qpos)]),
-            np.concatenate([np.zeros(6), np.asarray(qvel)]),
-            np.concatenate([np.zeros(6), np.asarray(qacc)]),
+        """Full MuJoCo ``(qpos, qvel, qacc)`` for jaxbal ``(q, q̇, q̈)``, each ``(nq,)``
+        / ``(nv,)``, or ``(T, nq)`` / ``(T, nv)`` for batched ``(T, dof)`` input."""
+        q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
+        if q.ndim == 2:
+            states = _batched_state(self.tree, q, qd, qdd)
+        else:
+            states = tree_state(self.tree, q, qd, qdd)
+        return tuple(
+            np.concatenate([np.zeros(s.shape[:-1] + (6,)), np.asarray(s)], axis=-1) for s in states
         )
 
     def base_reaction(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
@@ -136,8 +144,9 @@ def mujoco_base_reaction(
         check_shape(name, value, q.shape)
     data = mujoco.MjData(compiled.model)
     forces, moments = [], []
-    for sample in zip(*(np.atleast_2d(a) for a in (q, qd, qdd)), strict=True):
-        data.qpos[:], data.qvel[:], data.qacc[:] = compiled.state(*sample)
+    states = compiled.state(*(np.atleast_2d(a) for a in (q, qd, qdd)))
+    for qpos, qvel, qacc in zip(*states, strict=True):
+        data.qpos[:], data.qvel[:], data.qacc[:] = qpos, qvel, qacc
         mujoco.mj_inverse(compiled.model, data)
         force, moment = compiled.base_reaction(data)
         forces.append(force)
@@ -160,7 +169,8 @@ class MjxRobot(eqx.Module):
         axes: ``(n, 3, 3)`` principal axes of the nominal inertias (MuJoCo's
             ``body_iquat``), kept fixed when the inertias change.
         padding: ``(n, 3)`` principal-moment padding (see
-            :func:`jaxbal.mjcf.realisable_inertia`), kept fixed.
+            :func:`jaxbal.mjcf.mujoco_inertials`), kept fixed.
+        mass_floor: ``(n,)`` mass added to massless moving bodies [kg], kept fixed.
         subtree: ``(nbody, nbody)`` 0/1 matrix, ``subtree[a, b] = 1`` if body b is in
             the subtree of a (for ``body_subtreemass``).
         gravity: ``(3,)`` [m/s²].
@@ -172,6 +182,7 @@ class MjxRobot(eqx.Module):
     body_ids: tuple[int, ...] = eqx.field(static=True)
     axes: jax.Array
     padding: jax.Array
+    mass_floor: jax.Array
     subtree: jax.Array
     gravity: jax.Array
 
@@ -182,7 +193,7 @@ def mjx_model(robot: Robot, gravity=None, tree: Tree | None = None) -> MjxRobot:
     model = compiled.model
     bodies = robot.mass_properties()
     body_ids = tuple(model.body(name).id for name in bodies.names)
-    decomposed = [realisable_inertia(i) for i in np.asarray(bodies.inertia)]
+    inertials = mujoco_inertials(robot, compiled.tree)
     subtree = np.eye(model.nbody)
     for b in range(model.nbody - 1, 0, -1):
         subtree[model.body_parentid[b]] += subtree[b]
@@ -192,8 +203,9 @@ def mjx_model(robot: Robot, gravity=None, tree: Tree | None = None) -> MjxRobot:
         data=mjx.make_data(mjx_m),
         tree=compiled.tree,
         body_ids=body_ids,
-        axes=jnp.asarray(np.stack([d[1] for d in decomposed])),
-        padding=jnp.asarray(np.stack([d[2] for d in decomposed])),
+        axes=jnp.asarray(inertials.axes),
+        padding=jnp.asarray(inertials.padding),
+        mass_floor=jnp.asarray(inertials.mass_floor),
         subtree=jnp.asarray(subtree),
         gravity=jnp.asarray(compiled.gravity),
     )
@@ -210,7 +222,7 @@ def with_mass_properties(compiled: MjxRobot, robot: Robot) -> mjx.Model:
     ids = jnp.asarray(compiled.body_ids)
     principal = jnp.einsum("nji,njk,nki->ni", compiled.axes, bodies.inertia, compiled.axes)
     model = compiled.model
-    mass = model.body_mass.at[ids].set(bodies.mass)
+    mass = model.body_mass.at[ids].set(bodies.mass + compiled.mass_floor)
     return model.replace(
         body_mass=mass,
         body_ipos=model.body_ipos.at[ids].set(bodies.com),
@@ -273,10 +285,16 @@ class Confirmation(NamedTuple):
         return max(self.force_relative, self.moment_relative)
 
 
-def _gross_scales(robot: Robot, q, qd, qdd, gravity):
+@jax.jit
+def _reference_and_scales(robot: Robot, q, qd, qdd, g):
+    """jaxbal's shaking wrench ``(T, 3)`` ×2 and the gross scales (see :func:`confirm`)."""
+    force, moment = jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c, gravity=g))(q, qd, qdd)
+    return force, moment, *_gross_scales(robot, q, qd, qdd, g)
+
+
+def _gross_scales(robot: Robot, q, qd, qdd, g):
     """Peak ``Σ_i |m_i a_i - m_i g|`` and ``Σ_i |dL_i/dt - c_i × m_i g|`` [N], [N·m]."""
     bodies = robot.mass_properties()
-    g = jnp.zeros(3) if gravity is None else jnp.asarray(gravity, dtype=float)
 
     def per_body(q_, qd_):
         def poses(x):
@@ -298,7 +316,7 @@ def _gross_scales(robot: Robot, q, qd, qdd, gravity):
         return force, moment
 
     force, moment = jax.vmap(rates)(q, qd, qdd)
-    return float(jnp.max(force)), float(jnp.max(moment))
+    return jnp.max(force), jnp.max(moment)
 
 
 def confirm(
@@ -317,9 +335,8 @@ def confirm(
         A :class:`Confirmation` (max relative and absolute differences).
     """
     q, qd, qdd = (jnp.atleast_2d(jnp.asarray(a, dtype=float)) for a in (q, qd, qdd))
-    ref_force, ref_moment = jax.jit(
-        jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c, gravity=gravity))
-    )(q, qd, qdd)
+    g = jnp.zeros(3) if gravity is None else jnp.asarray(gravity, dtype=float)
+    ref_force, ref_moment, gross_force, gross_moment = _reference_and_scales(robot, q, qd, qdd, g)
     if engine == "mujoco":
         force, moment = mujoco_base_reaction(robot, q, qd, qdd, gravity=gravity, tree=tree)
         independent = (robot_tree(robot, fallback=True) if tree is None else tree).independent
@@ -331,11 +348,10 @@ def confirm(
         independent = compiled.tree.independent
     else:
         raise ValueError(f"engine must be 'mujoco' or 'mjx', got {engine!r}")
-    gross_force, gross_moment = _gross_scales(robot, q, qd, qdd, gravity)
     force_error = float(np.max(np.abs(np.asarray(force) - np.asarray(ref_force))))
     moment_error = float(np.max(np.abs(np.asarray(moment) - np.asarray(ref_moment))))
-    force_scale = max(float(jnp.max(jnp.abs(ref_force))), gross_force, 1e-300)
-    moment_scale = max(float(jnp.max(jnp.abs(ref_moment))), gross_moment, 1e-300)
+    force_scale = max(float(jnp.max(jnp.abs(ref_force))), float(gross_force), 1e-300)
+    moment_scale = max(float(jnp.max(jnp.abs(ref_moment))), float(gross_moment), 1e-300)
     return Confirmation(
         force_relative=force_error / force_scale,
         moment_relative=moment_error / moment_scale,
