@@ -30,6 +30,8 @@ from jaxbal.planning import EndEffectorLine, peak_norm, wrench_along
 from jaxbal.profiles import Quintic
 from jaxbal.report import atomic_write_text
 
+BENCH_START, BENCH_END = "<!-- bench:start -->", "<!-- bench:end -->"
+
 
 def best_time(fn, repeats: int = 5) -> float:
     times = []
@@ -157,6 +159,7 @@ def main():
     parser.add_argument("--out", type=Path, default=Path("benchmarks/results"))
     parser.add_argument("--states", type=int, default=1_000_000)
     parser.add_argument("--loop-states", type=int, default=20_000)
+    parser.add_argument("--readme", type=Path, default=Path("README.md"))
     args = parser.parse_args()
     result = {
         "machine": {
@@ -172,6 +175,38 @@ def main():
     text = json.dumps(result, indent=2)
     atomic_write_text(args.out / f"bench_{jax.default_backend()}.json", text + "\n")
     print(text)
+    if args.readme.exists():
+        update_readme(args.readme, result)
+
+
+def update_readme(readme: Path, result: dict) -> None:
+    """Quote the measured ratios between the bench markers of README.md."""
+    wrench, grad = result["shaking_wrench_2r"], result["gradient_cost"]
+    block = "\n".join(
+        [
+            BENCH_START,
+            f"Measured on {result['machine']['devices'][0]} ({result['machine']['platform']}), "
+            f"jax {result['machine']['jax']}, mujoco {result['machine']['mujoco']}:",
+            "",
+            "| quantity | value | target |",
+            "|---|---:|---:|",
+            f"| 2R shaking wrench, jaxbal jit+vmap on {wrench['states']:,} states | "
+            f"{1e9 * wrench['jaxbal_seconds_per_state']:.0f} ns/state | |",
+            f"| speed-up vs MuJoCo C `mj_inverse` loop | {wrench['speedup_vs_mujoco_c_loop']:.1f}× "
+            f"| ≥ {wrench['target_speedup_vs_mujoco_c_loop']:.0f}× |",
+            f"| speed-up vs plain NumPy loop | {wrench['speedup_vs_numpy_loop']:.1f}× | |",
+            f"| jaxbal vs MuJoCo, max relative difference | "
+            f"{wrench['max_relative_difference_jaxbal_vs_mujoco']:.1e} | |",
+            f"| cost of `jax.grad` / value ({grad['objective']}) | "
+            f"{grad['grad_over_value']:.2f}× | ≤ {grad['target_grad_over_value']:.0f}× |",
+            BENCH_END,
+        ]
+    )
+    text = readme.read_text()
+    start, end = text.find(BENCH_START), text.find(BENCH_END)
+    if start < 0 or end < 0:
+        return
+    atomic_write_text(readme, text[:start] + block + text[end + len(BENCH_END) :])
 
 
 if __name__ == "__main__":

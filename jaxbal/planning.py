@@ -101,14 +101,21 @@ def com_line(
     return ComLine(robot, StraightLine(start, end, profile, duration), free, mode)
 
 
+@eqx.filter_jit
 def wrench_along(
     robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
 ) -> tuple[Float[Array, "t 3"], Float[Array, "t 3"]]:
-    """Shaking force ``(t, 3)`` [N] and moment ``(t, 3)`` [N·m] along a trajectory."""
+    """Shaking force ``(t, 3)`` [N] and moment ``(t, 3)`` [N·m] along a trajectory.
+
+    Compiled (``eqx.filter_jit``): a boundary function. It recompiles only when the
+    structure of ``robot``/``path`` changes (a new Python callable inside ``path``
+    counts as a new structure), not for new parameter values.
+    """
     q, qd, qdd = sample(path, times, order=2)
     return jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c, gravity))(q, qd, qdd)
 
 
+@eqx.filter_jit
 def torque_rate_along(
     robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
 ) -> Float[Array, "t dof"]:
