@@ -284,3 +284,18 @@ def test_grad_of_peak_force_wrt_payload_through_planner():
     assert np.isfinite(grad)
     numeric = (peak(5.0 + 1e-4) - peak(5.0 - 1e-4)) / 2e-4
     np.testing.assert_allclose(grad, numeric, rtol=1e-5)
+
+
+def test_compiles_once_per_structure():
+    """New parameter values reuse the compiled wrench; a new structure (3R) recompiles."""
+    wrench = jax.jit(jaxbal.shaking_wrench)
+    q, qd, qdd = (x[0] for x in random_states(1, 2))
+    for payload in (0.0, 2.0, 5.0):
+        arm = jaxbal.robots.planar_2r(payload=payload)
+        wrench(arm, q, qd, qdd)
+    heavier = jaxbal.robots.PlanarArm([0.6, 0.4], [0.3, 0.1], [30.0, 9.0], [1.5, 0.1], 1.0)
+    wrench(heavier, q, qd, qdd)
+    assert wrench._cache_size() == 1
+    q3 = jnp.zeros(3)
+    wrench(jaxbal.robots.planar_3r(), q3, q3, q3)
+    assert wrench._cache_size() == 2
