@@ -201,9 +201,13 @@ The COM plan (case 3) solves eq (6) with eq (1) for P by Newton's method with im
 differentiation (`jaxbal.implicit`), so every number below is differentiable.
 
 **Table 1** (force) depends only on masses and kinematics; it is reproduced without
-gravity (with gravity along any axis the errors grow to 7-19 %). Differences ≤ 0.4 %,
-the largest for case 2 at 0 kg (+0.4 %: our maximum is the exact supremum, just before
-the bang-bang switch; ADAMS samples the motion) and case 3 (−0.3 %).
+gravity (with gravity along any axis the errors grow to 7-19 %). Differences ≤ 0.45 %:
+case 1 is 0.07-0.14 % low, case 3 0.23-0.35 % low (our designed COM acceleration is
+38.72 m/s², the paper's 78.86 N / 2.032 kg would need 38.81), and case 2 at 0 kg is
+0.43 % high because our maximum is the exact supremum, reached just before the
+bang-bang switch at T/2 (sampling on a grid without that instant gives +0.3 %). The
+reduction columns are percentages: their "rel. diff" is relative to the percentage
+(payload 0, case 2: 24.57 vs 24.9 %, i.e. 0.33 percentage points).
 
 **Table 2** (moment). About the intersection O of the prismatic axes the payload adds
 no moment at all (it moves on a straight line through O), while the paper's moment grows
@@ -226,8 +230,12 @@ it, as in the paper.
 **Sensitivity (§3.3).** Δm = {dm} kg (not given in the paper). Case 3: COM plan made
 for the true payload m + Δm; case 4: plan made for m, run with m + Δm. `dcase3_ddm` is
 the exact derivative through the planner (implicit differentiation of the COM inverse
-kinematics); `dcase4_ddm` the derivative with the plan fixed. Their difference at Δm = 0
-is the first-order sensitivity of the balancing to a payload error.
+kinematics); `dcase4_ddm` the derivative with the plan fixed. The case-3 force has a
+constant norm (the bang-bang COM plan is optimal for the true payload), so the force
+difference case 4 − case 3 is ≥ 0 for both signs of Δm and has a kink at Δm = 0 (see the
+figure): to first order it is |Δm| times the one-sided slope difference. As in the
+paper, the difference is small (≤ 0.4 N, ≤ 0.25 N·m at Δm = 0.1 kg) and decreases as
+the payload grows.
 """
 
 EXPERIMENT = Experiment(
