@@ -25,9 +25,9 @@ unaffected, exactly. The ``base`` body needs a mass to hold joints; it is
 :data:`BASE_MASS`, never accelerated (its dofs are held at zero), and its weight is
 subtracted when gravity is on.
 
-:func:`prescribed_tree` is a generic fallback for any robot: every jaxbal body hangs
-from the base on 3 slides and a ball joint whose motion is *prescribed* from
-``robot.body_frames``. It checks the mass properties and the momentum bookkeeping
+:func:`jaxbal.mjx_trees.prescribed_tree` is a generic fallback for any robot: every
+jaxbal body hangs from the base on 3 slides and a ball joint whose motion is
+*prescribed* from ``robot.body_frames``. It checks the mass properties and the momentum bookkeeping
 (Newton-Euler), not the kinematics, so it is less independent than a registered tree.
 
 References:
@@ -146,7 +146,7 @@ class Tree(NamedTuple):
 def _tree_builder(robot: Robot) -> Tree:
     raise NotImplementedError(
         f"no MuJoCo tree is registered for {type(robot).__name__}; register one with "
-        "jaxbal.mjcf.register_tree or use jaxbal.mjcf.prescribed_tree(robot)"
+        "jaxbal.mjcf.register_tree or use jaxbal.mjx_trees.prescribed_tree(robot)"
     )
 
 
@@ -164,6 +164,8 @@ def robot_tree(robot: Robot, fallback: bool = False) -> Tree:
         return _tree_builder(robot)
     except NotImplementedError:
         if fallback:
+            from jaxbal.mjx_trees import prescribed_tree
+
             return prescribed_tree(robot)
         raise
 
@@ -214,7 +216,7 @@ def tree_state(tree: Tree, q, qd, qdd):
     return qpos, qvel, qacc
 
 
-# --- generic fallback -----------------------------------------------------------------
+# --- rotations ----------------------------------------------------------------------
 
 
 def _matrix_to_quat(rotation):
@@ -244,59 +246,6 @@ def _matrix_to_quat(rotation):
     row = candidates[k]
     quat = row / (2.0 * jnp.sqrt(jnp.maximum(row[k], 1e-300)))
     return quat * jnp.sign(quat[0] + (quat[0] == 0))
-
-
-def prescribed_tree(robot: Robot) -> Tree:
-    """Generic tree: every jaxbal body on 3 world slides + a ball joint under the base.
-
-    Less independent than a registered tree: the kinematics (poses, velocities,
-    accelerations) are jaxbal's own ``body_frames`` and its derivatives; MuJoCo then
-    checks the Newton-Euler sum of the bodies' momenta about the base origin. Valid
-    for closed chains too. The joints sit on massless helper bodies (mass
-    :data:`BASE_MASS`, a relative error ~1e-13) carrying the welded jaxbal bodies.
-    Its ``state`` gives slide positions and ball quaternions, the velocities and
-    accelerations in MuJoCo's convention (a ball joint's velocity is the angular
-    velocity in the body frame, not the derivative of its quaternion).
-    """
-    bodies = ()
-    for name in robot.mass_properties().names:
-        slides = tuple(
-            Joint(f"{name}_{a}", "slide", tuple(float(x) for x in ax))
-            for a, ax in zip("xyz", np.eye(3), strict=True)
-        )
-        bodies += (
-            TreeBody(
-                name=f"{name}_frame", parent=None, joints=slides + (Joint(f"{name}_ball", "ball"),)
-            ),
-            TreeBody(name=name, parent=f"{name}_frame"),
-        )
-
-    def coordinates(q):
-        origins, rotations = robot.body_frames(q)
-        quats = jax.vmap(_matrix_to_quat)(rotations)
-        return jnp.concatenate([origins, quats], axis=-1).reshape(-1)
-
-    def state(q, qd, qdd):
-        q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
-
-        def frames(q_):
-            return robot.body_frames(q_)
-
-        def twist(q_, qd_):
-            (origins, rotations), (velocities, rates) = jax.jvp(frames, (q_,), (qd_,))
-            omega_local = _vee(jnp.einsum("nji,njk->nik", rotations, rates))
-            return velocities, omega_local
-
-        (velocities, omega), (accelerations, omega_dot) = jax.jvp(twist, (q, qd), (qd, qdd))
-        qvel = jnp.concatenate([velocities, omega], axis=-1).reshape(-1)
-        qacc = jnp.concatenate([accelerations, omega_dot], axis=-1).reshape(-1)
-        return coordinates(q), qvel, qacc
-
-    return Tree(bodies=bodies, coordinates=coordinates, independent=False, state=state)
-
-
-def _vee(skew):
-    return jnp.stack([skew[..., 2, 1], skew[..., 0, 2], skew[..., 1, 0]], -1)
 
 
 # --- inertias ---------------------------------------------------------------------------
@@ -405,7 +354,8 @@ def to_mjcf(
 
     Args:
         robot: any :class:`~jaxbal.robot.Robot`.
-        tree: its :class:`Tree`; default :func:`robot_tree` (with fallback).
+        tree: its :class:`Tree`; default :func:`robot_tree` (with the prescribed
+            fallback).
         gravity: ``(3,)`` [m/s²], default zero.
         model_name: the ``<mujoco model=...>`` name.
         base_joints: carry the robot on the six base dofs (for the base reaction);

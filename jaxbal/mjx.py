@@ -360,3 +360,22 @@ def confirm(
         engine=engine,
         independent=independent,
     )
+
+
+def confirm_path(
+    robot: Robot,
+    joint_path,
+    times,
+    gravity=None,
+    engine: str = "mujoco",
+    tree: Tree | None = None,
+) -> Confirmation:
+    """:func:`confirm` along a planned joint trajectory ``t -> q`` at ``times`` [s].
+
+    ``q, q̇, q̈`` are sampled exactly (nested ``jvp``, jitted) as in
+    :func:`jaxbal.sample`; use this for the MJX column of a shaking-force table.
+    """
+    from jaxbal.trajectory import sample
+
+    q, qd, qdd = jax.jit(lambda ts: sample(joint_path, ts, 2)[:3])(jnp.asarray(times, dtype=float))
+    return confirm(robot, q, qd, qdd, gravity=gravity, engine=engine, tree=tree)

@@ -25,6 +25,9 @@ robot              MuJoCo tree                                  qpos from jaxbal
                    parallelogram end = P                        (quaternion)
 =================  ===========================================  ======================
 
+Any other robot can use :func:`prescribed_tree` (less independent: kinematics from
+jaxbal's own ``body_frames``).
+
 The closed chains are opened at the platform joints and closed again by ``connect``
 equality constraints; jaxbal's inverse kinematics supplies every coordinate.
 
@@ -37,10 +40,12 @@ References:
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal.mjcf import Connect, Joint, Tree, TreeBody, register_tree
+from jaxbal.mjcf import Connect, Joint, Tree, TreeBody, _matrix_to_quat, register_tree
+from jaxbal.robot import Robot
 from jaxbal.robots.planar_arm import PlanarArm
 
 Z = (0.0, 0.0, 1.0)
@@ -251,6 +256,62 @@ def orthoglide_tree(robot) -> Tree:
         connects=tuple(connects),
         actuated=("rho_x", "rho_y", "rho_z"),
     )
+
+
+# --- generic fallback ---------------------------------------------------------------
+
+
+def prescribed_tree(robot: Robot) -> Tree:
+    """Generic tree: every jaxbal body on 3 world slides + a ball joint under the base.
+
+    Less independent than a registered tree: the kinematics (poses, velocities,
+    accelerations) are jaxbal's own ``body_frames`` and its derivatives; MuJoCo then
+    checks the Newton-Euler sum of the bodies' momenta about the base origin. Valid
+    for closed chains too. The joints sit on massless helper bodies (mass
+    :data:`BASE_MASS`, a relative error ~1e-13) carrying the welded jaxbal bodies.
+    Its ``state`` gives slide positions and ball quaternions, the velocities and
+    accelerations in MuJoCo's convention (a ball joint's velocity is the angular
+    velocity in the body frame, not the derivative of its quaternion).
+    """
+    bodies = ()
+    for name in robot.mass_properties().names:
+        slides = tuple(
+            Joint(f"{name}_{a}", "slide", tuple(float(x) for x in ax))
+            for a, ax in zip("xyz", np.eye(3), strict=True)
+        )
+        bodies += (
+            TreeBody(
+                name=f"{name}_frame", parent=None, joints=slides + (Joint(f"{name}_ball", "ball"),)
+            ),
+            TreeBody(name=name, parent=f"{name}_frame"),
+        )
+
+    def coordinates(q):
+        origins, rotations = robot.body_frames(q)
+        quats = jax.vmap(_matrix_to_quat)(rotations)
+        return jnp.concatenate([origins, quats], axis=-1).reshape(-1)
+
+    def state(q, qd, qdd):
+        q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
+
+        def frames(q_):
+            return robot.body_frames(q_)
+
+        def twist(q_, qd_):
+            (origins, rotations), (velocities, rates) = jax.jvp(frames, (q_,), (qd_,))
+            omega_local = _vee(jnp.einsum("nji,njk->nik", rotations, rates))
+            return velocities, omega_local
+
+        (velocities, omega), (accelerations, omega_dot) = jax.jvp(twist, (q, qd), (qd, qdd))
+        qvel = jnp.concatenate([velocities, omega], axis=-1).reshape(-1)
+        qacc = jnp.concatenate([accelerations, omega_dot], axis=-1).reshape(-1)
+        return coordinates(q), qvel, qacc
+
+    return Tree(bodies=bodies, coordinates=coordinates, independent=False, state=state)
+
+
+def _vee(skew):
+    return jnp.stack([skew[..., 2, 1], skew[..., 0, 2], skew[..., 1, 0]], -1)
 
 
 def _register(module: str, name: str, builder) -> None:

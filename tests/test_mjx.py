@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import jaxbal
-from jaxbal.mjcf import export_mjcf, prescribed_tree, robot_tree, to_mjcf
+from jaxbal.mjcf import export_mjcf, robot_tree, to_mjcf
 from jaxbal.mjx import (
     confirm,
     mjx_base_reaction,
@@ -26,6 +26,7 @@ from jaxbal.mjx import (
     mujoco_model,
 )
 from jaxbal.mjx_simulate import mujoco_actuator_efforts, simulate_open_loop
+from jaxbal.mjx_trees import prescribed_tree
 from jaxbal.robots.dual_v import dual_v
 from jaxbal.robots.orthoglide import orthoglide
 from jaxbal.robots.planar_arm import PlanarArm, planar_2r, planar_3r
