@@ -149,18 +149,30 @@ def test_ik_gradients_finite_and_correct():
     assert all(bool(jnp.all(jnp.isfinite(leaf))) for leaf in jax.tree_util.tree_leaves(grad))
 
 
-@pytest.mark.parametrize("balanced", [True, False])
-def test_paper_torques_match_virtual_work(balanced):
-    """Eqs (3)-(29) vs Lagrange over all bodies (autodiff): same platform effect
-    Jᵀτ, and the minimum-norm part equals the virtual-work torques (tol 1e-9 N·m)."""
-    robot = dual_v(counter_masses=balanced)
+@eqx.filter_jit
+def _three_torques(robot):
     q, _, _ = joint_motion(robot, *MOTION)
     tau_paper = paper_torques(robot, q, MOTION[1], MOTION[2])
     tau_vw = virtual_work_torques(robot, *MOTION)
+    same_split = virtual_work_torques(robot, *MOTION, distribution="paper")
+    return q, tau_paper, tau_vw, same_split
+
+
+@pytest.mark.parametrize("balanced", [True, False])
+def test_paper_torques_match_virtual_work(balanced):
+    """Eqs (3)-(29) vs Lagrange over all bodies (autodiff): same platform effect
+    Jᵀτ, the minimum-norm part equals the virtual-work torques, and Lagrange on the
+    split model (same distribution as the paper) equals τ itself (tol 1e-9 N·m)."""
+    robot = dual_v(counter_masses=balanced)
+    q, tau_paper, tau_vw, same_split = _three_torques(robot)
     jac = robot.jacobian(q)
     np.testing.assert_allclose(jac.T @ tau_paper, jac.T @ tau_vw, atol=1e-9)
-    ranged, _ = torque_split(robot, q, tau_paper)
+    ranged, preload = torque_split(robot, q, tau_paper)
     np.testing.assert_allclose(ranged, tau_vw, atol=1e-9)
+    np.testing.assert_allclose(tau_paper, same_split, atol=1e-9)
+    assert float(jnp.max(jnp.abs(preload))) > 1e-3  # the paper's τ is not minimum-norm
+    with pytest.raises(ValueError, match="distribution"):
+        virtual_work_torques(robot, *MOTION, distribution="other")
 
 
 def test_bearing_forces_sum_to_shaking_wrench():

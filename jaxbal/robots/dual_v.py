@@ -4,18 +4,20 @@ Four RR arms ``A_i B_i C_i`` carry a platform *link* 5 whose two joints coincide
 (``C_1 = C_2``, ``C_3 = C_4``). Links ``i1`` (``A_i B_i``) are driven at the base; a brass
 counter-mass (with a lead tuning mass) sits on the prolongation of each link ``i1``.
 
-=====================  ==========  ======  ===========================================
-parameter              value       unit    source (Table 1)
-=====================  ==========  ======  ===========================================
-l_i1, l_i2             0.2800      m       links A_iB_i, B_iC_i (all arms equal)
-a = l_i1·√2, b         0.3960, 0.11 m      base pivots; platform length l_5 = 2b = 0.22
-m_i1, I_i1, p_i1       1.169, 0.012967, 0.0737   kg, kg·m², m (COM from A_i)
-m_i2, I_i2, p_i2       0.606, 0.006417, 0.1279   kg, kg·m², m (COM from B_i)
-m_5, I_5               0.899, 0.008168 kg, kg·m²  (COM at the platform centre)
-m_cm,i, I_cm,i, p_cm,i 7.983, 0.026845, 0.0575  counter-mass *including* tuning mass
-m_tun,i, p_tun,i       0.188, 0.080    kg, m     lead tuning mass (point mass)
-I_act,i                0.0041          kg·m²     actuator rotor
-=====================  ==========  ======  ===========================================
+======================  =========================  ============  ======================
+parameter               value                      unit          note
+======================  =========================  ============  ======================
+l_i1, l_i2              0.2800, 0.2800             m             all arms equal
+a = l_i1·√2, b          0.3960, 0.1100             m             l_5 = 2b = 0.22 m
+m_i1, I_i1, p_i1        1.169, 0.012967, 0.0737    kg, kg·m², m  COM from A_i
+m_i2, I_i2, p_i2        0.606, 0.006417, 0.1279    kg, kg·m², m  COM from B_i
+m_5, I_5                0.899, 0.008168            kg, kg·m²     COM at platform centre
+m_cm,i, I_cm,i, p_cm,i  7.983, 0.026845, 0.0575    kg, kg·m², m  incl. tuning mass
+m_tun,i, p_tun,i        0.188, 0.080               kg, m         lead, point mass
+I_act,i                 0.0041                     kg·m²         actuator rotor
+======================  =========================  ============  ======================
+
+Source: Table 1 of the paper; inertias are about each body's COM.
 
 Layout (Fig 2c is not in the text; derived from it and the equations, see the drawing
 ``plot_layout``):
@@ -35,7 +37,10 @@ Layout (Fig 2c is not in the text; derived from it and the equations, see the dr
   from the x axis, the two "V"s) or ``CROSSED = (-1, +1, -1, +1)``, a non-rotated platform
   gives ``θ_41 = θ_12, θ_42 = θ_11, θ_31 = θ_22, θ_32 = θ_21``. Hence the linear
   momentum multiplies the four link directions ``e_11, e_21, e_22 (= e_31), e_12 (= e_41)``
-  by exactly the four rows of eq (2). Mixed branches break the parallelograms.
+  by exactly the four rows of eq (2). Mixed branches break the parallelograms. Both
+  branches give the same shaking force but not the same shaking moment: on the Fig 12
+  triangle OUTWARD gives 16.1 / 14.2 / 14.1 N·m (unbalanced / 96.72 % / balanced), the
+  paper's values, and CROSSED 10.0 / 27.8 / 28.5 N·m; OUTWARD is the prototype's branch.
 * all angles are absolute, from the x axis, counter-clockwise [rad].
 
 Coordinates ``q`` (what :meth:`DualV.inverse_kinematics` returns, 11 entries):
@@ -44,7 +49,8 @@ Coordinates ``q`` (what :meth:`DualV.inverse_kinematics` returns, 11 entries):
 References:
     van der Wijk, V., Krut, S., Pierrot, F., Herder, J. L. (2013). Design and
     experimental evaluation of a dynamically balanced redundant planar 4-RRR parallel
-    manipulator. Int. J. Robotics Research 32(6), 744-759. Table 1, eqs (1)-(9), Fig 8.
+    manipulator. Int. J. Robotics Research, pp. 743-758, doi:10.1177/0278364913484183.
+    Table 1, eqs (1)-(9), Fig 8.
 """
 
 from __future__ import annotations

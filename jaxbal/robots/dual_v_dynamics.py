@@ -17,6 +17,9 @@ Every ``τ`` with ``Jᵀτ = GᵀQ`` drives the same motion; they differ by an i
 along ``null(Jᵀ)`` (1-D). The paper's model distributes only the platform part with the
 pseudo-inverse, so it is *not* the minimum-norm solution of the whole robot: its
 projection ``J^{T*}Jᵀτ_paper`` on ``range(J)`` is. :func:`torque_split` returns both parts.
+The paper's own distribution is also obtained independently, by Lagrange/autodiff on the
+exact equivalent model of links i2 in the coordinates ``(θ_i1, u)``
+(:class:`SplitModel`, ``virtual_work_torques(..., distribution="paper")``).
 
 Bearing forces (:func:`bearing_forces`) follow from the constraint forces at C_i:
 ``Q - Bᵀτ = Φ_qᵀ μ`` with the loop closures ``Φ`` of :meth:`DualV.constraint`; then the
@@ -33,15 +36,18 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxbal.dynamics import inverse_dynamics
 from jaxbal.momentum import body_com_positions, shaking_wrench
+from jaxbal.robot import Bodies, Robot, concatenate, planar_inertia, rot_z
 from jaxbal.robots.dual_v import OUTWARD, PLATFORM_END, DualV
 from jaxbal.types import Array, Float
 
 __all__ = [
     "ARM_BODIES",
     "MotionSample",
+    "SplitModel",
     "base_wrench_from_bearings",
     "bearing_forces",
     "evaluate",
@@ -140,14 +146,89 @@ def _reduced_forces(robot: DualV, pose, pose_d, pose_dd, branch):
     return q, qd, qdd, g, forces
 
 
-def virtual_work_torques(robot: DualV, pose, pose_d, pose_dd, branch=OUTWARD):
-    """Minimum-norm actuator torques [N·m] by virtual work over all bodies (autodiff).
+KEPT_BODIES = (0, 1, 2, 3, *range(8, 22))  # all bodies but links i2
 
-    ``τ = (Jᵀ)⁺ Gᵀ Q`` with ``Q`` the Lagrange forces of all 22 bodies on the 11
-    coordinates, ``G = ∂q/∂u`` and ``J = G[:4]`` (both by autodiff of the IK).
+
+class SplitModel(Robot):
+    """The DUAL-V in the 7 coordinates ``x = (θ_11..θ_41, x5, y5, θ5)`` with each link i2
+    replaced by its exact equivalent: point masses ``m_eq,i1`` at B_i (moves with θ_i1),
+    ``m_eq,i2`` at C_i (moves with the platform) and a residual inertia
+    ``I_i2 - m_i2·p_i2·(l_i2 - p_i2)`` turning with the direction of ``C_i - B_i``
+    (a holonomic function of ``x``). Used to compute the paper's torque distribution by
+    Lagrange/autodiff, independently of eqs (12)-(29).
     """
-    _, _, _, g, forces = _reduced_forces(robot, pose, pose_d, pose_dd, branch)
-    return _pinv_transpose(g[:4]) @ (g.T @ forces)
+
+    robot: DualV
+
+    def mass_properties(self) -> Bodies:
+        r = self.robot
+        full = r.mass_properties()
+        keep = KEPT_BODIES
+        m_eq1 = r.m2 * (1.0 - r.p2 / r.l2)
+        m_eq2 = r.m2 * r.p2 / r.l2
+        residual = r.inertia2 - r.m2 * r.p2 * (r.l2 - r.p2)
+        zeros = jnp.zeros(4)
+        extra = Bodies(
+            mass=jnp.concatenate([m_eq1, m_eq2, zeros]),
+            com=jnp.zeros((12, 3)),
+            inertia=planar_inertia(jnp.concatenate([zeros, zeros, residual])),
+            names=tuple(f"{kind}{i}" for kind in ("eq_B", "eq_C", "residual") for i in range(1, 5)),
+        )
+        index = np.asarray(keep)
+        kept = Bodies(
+            mass=full.mass[index],
+            com=full.com[index],
+            inertia=full.inertia[index],
+            names=tuple(full.names[k] for k in keep),
+        )
+        return concatenate(kept, extra)
+
+    def body_frames(self, x):
+        r = self.robot
+        x = jnp.asarray(x, dtype=float)
+        theta1, pose = x[:4], x[4:7]
+        elbows = r.base_pivots() + r.l1[:, None] * jnp.stack([jnp.cos(theta1), jnp.sin(theta1)], -1)
+        ends = r.platform_joints(pose)
+        link = ends - elbows
+        phi = jnp.arctan2(link[:, 1], link[:, 0])
+        origins, rotations = r.body_frames(jnp.concatenate([theta1, phi, pose]))
+        keep = np.asarray(KEPT_BODIES)
+
+        def planar(points):
+            return jnp.concatenate([points, jnp.zeros((4, 1))], -1)
+
+        extra_origins = jnp.concatenate([planar(elbows), planar(ends), planar(elbows)])
+        extra_rotations = jnp.concatenate([rot_z(phi), rot_z(phi), rot_z(phi)])
+        return (
+            jnp.concatenate([origins[keep], extra_origins]),
+            jnp.concatenate([rotations[keep], extra_rotations]),
+        )
+
+
+def virtual_work_torques(
+    robot: DualV, pose, pose_d, pose_dd, branch=OUTWARD, distribution: str = "min_norm"
+):
+    """Actuator torques [N·m] by virtual work / Lagrange via autodiff (no eq 3-29).
+
+    ``distribution="min_norm"``: ``τ = (Jᵀ)⁺ Gᵀ Q`` with ``Q`` the Lagrange forces of all
+    22 bodies on the 11 coordinates, ``G = ∂q/∂u`` and ``J = G[:4]`` (autodiff of the IK):
+    the minimum-norm torques of the whole robot.
+
+    ``distribution="paper"``: Lagrange on :class:`SplitModel` (7 coordinates) gives the
+    forces ``Q̃_a`` on the actuated angles and ``Q̃_u`` on the platform; the latter are
+    distributed with minimum norm, ``τ = Q̃_a + (Jᵀ)⁺ Q̃_u`` -- the distribution of
+    eqs (3)-(29).
+    """
+    if distribution == "min_norm":
+        _, _, _, g, forces = _reduced_forces(robot, pose, pose_d, pose_dd, branch)
+        return _pinv_transpose(g[:4]) @ (g.T @ forces)
+    if distribution != "paper":
+        raise ValueError(f"distribution must be 'min_norm' or 'paper', got {distribution!r}")
+    q, qd, qdd = joint_motion(robot, pose, pose_d, pose_dd, branch)
+    select = jnp.array([0, 1, 2, 3, 8, 9, 10])
+    split = inverse_dynamics(SplitModel(robot), q[select], qd[select], qdd[select])
+    jacobian = robot.jacobian(q)
+    return split[:4] + _pinv_transpose(jacobian) @ split[4:]
 
 
 def torque_split(robot: DualV, q, tau):
