@@ -300,3 +300,27 @@ def test_sensitivity_gradients_eq30():
     equivalent = 2 * robot.m_tun[0] * robot.p_tun[0] / robot.l1[0]
     np.testing.assert_allclose(equivalent, 0.107, rtol=0.01)
     np.testing.assert_allclose(reduced_mass(robot.without_tuning_masses()), 0.107, rtol=0.02)
+
+
+def test_condition_grid_and_drawings():
+    """Fig 8 grid: NaN outside the workspace (corners of the box), κ ≥ 1 inside; the
+    layout and κ drawings run (matplotlib Agg)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from jaxbal.robots.dual_v_plots import (
+        condition_number_grid,
+        plot_condition_number,
+        plot_layout,
+    )
+
+    robot = dual_v()
+    xs, ys, kappa = condition_number_grid(robot, 0.0, count=9)
+    kappa = np.asarray(kappa)
+    assert np.isnan(kappa[0, 0]) and np.isnan(kappa[-1, -1])
+    assert np.all(kappa[np.isfinite(kappa)] >= 1.0 - 1e-12)
+    assert np.isfinite(kappa[4, 4])
+    plt.close(plot_layout(robot, pose=(0.05, 0.08, 0.1)).figure)
+    plt.close(plot_condition_number(robot, orientations=(0.0,), count=9))
