@@ -25,7 +25,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from jaxbal.dynamics import inverse_dynamics_rate
+from jaxbal.dynamics import inverse_dynamics, inverse_dynamics_rate
 from jaxbal.momentum import center_of_mass, shaking_wrench
 from jaxbal.profiles import Profile
 from jaxbal.robot import Robot
@@ -113,6 +113,15 @@ def wrench_along(
     """
     q, qd, qdd = sample(path, times, order=2)
     return jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c, gravity))(q, qd, qdd)
+
+
+@eqx.filter_jit
+def torques_along(
+    robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
+) -> Float[Array, "t dof"]:
+    """Actuator torques ``τ`` ``(t, dof)`` [N·m] along a trajectory (serial arms)."""
+    q, qd, qdd = sample(path, times, order=2)
+    return jax.vmap(lambda a, b, c: inverse_dynamics(robot, a, b, c, gravity))(q, qd, qdd)
 
 
 @eqx.filter_jit

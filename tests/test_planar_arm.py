@@ -299,3 +299,20 @@ def test_compiles_once_per_structure():
     q3 = jnp.zeros(3)
     wrench(jaxbal.robots.planar_3r(), q3, q3, q3)
     assert wrench._cache_size() == 2
+
+
+def test_force_balanced_arm_has_zero_shaking_force():
+    """Counterweights from the closed form keep the COM at O: f_sh = 0 (1e-12 N) for any
+    motion, while the moment does not vanish (Briot et al. 2012, §3.3)."""
+    arm = jaxbal.robots.planar_arm.force_balanced(jaxbal.robots.planar_2r(), [0.35, 0.2])
+    np.testing.assert_allclose(arm.equivalent_lengths(), 0.0, atol=1e-15)
+    qs, qds, qdds = random_states(10, 2)
+    force, moment = jax.vmap(lambda *s: jaxbal.shaking_wrench(arm, *s))(qs, qds, qdds)
+    np.testing.assert_allclose(force, 0.0, atol=1e-11)
+    assert float(jnp.max(jnp.abs(moment))) > 1.0
+    grad = jax.grad(
+        lambda d: jnp.sum(jaxbal.robots.planar_arm.force_balanced(arm, d).counter_masses)
+    )(jnp.array([0.35, 0.2]))
+    assert bool(jnp.all(jnp.isfinite(grad))) and bool(jnp.all(grad < 0))
+    with pytest.raises(ValueError, match="positive"):
+        jaxbal.robots.planar_arm.force_balanced(arm, [0.35, -0.2])

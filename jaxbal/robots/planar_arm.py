@@ -275,3 +275,43 @@ def planar_3r(payload: float = 5.0) -> PlanarArm:
         inertias=[1.246, 0.057, 0.025],
         payload=payload,
     )
+
+
+def force_balanced(arm: PlanarArm, counter_distances) -> PlanarArm:
+    """The arm with counterweights that keep its total COM at the base joint O.
+
+    Classical static (shaking-force) balancing, link by link from the tip: the
+    counterweight of link k, at ``d_cw,k`` behind joint k, cancels the first moment of
+    link k and of everything it carries about joint k,
+
+        m_cw,k d_cw,k = m_k r_k l_k + (Σ_{j>k} (m_j + m_cw,j) + m_tool) l_k,
+
+    so every ``l_eq,k`` of :meth:`PlanarArm.equivalent_lengths` vanishes.
+
+    Args:
+        arm: any planar arm (its current counterweights are replaced).
+        counter_distances: ``(n,)`` distances behind each joint [m], positive.
+
+    References:
+        Briot et al. (2012), §3.3 and footnote 1 (counterweights at 0.35 m from O and
+        0.2 m from A); Arakelian & Smith (2005).
+    """
+    distances = jnp.asarray(counter_distances, dtype=float)
+    check_shape("counter_distances", distances, (arm.n_links,))
+    raise_if_invalid(distances > 0, "counterweight distances must be positive", distances)
+    carried = arm.payload
+    counter = []
+    for k in reversed(range(arm.n_links)):
+        first_moment = arm.masses[k] * arm.com_ratios[k] * arm.lengths[k] + carried * arm.lengths[k]
+        counter_mass = first_moment / distances[k]
+        counter.append(counter_mass)
+        carried = carried + arm.masses[k] + counter_mass
+    return PlanarArm(
+        arm.lengths,
+        arm.com_ratios,
+        arm.masses,
+        arm.inertias,
+        arm.payload,
+        counter_masses=jnp.stack(counter[::-1]),
+        counter_distances=distances,
+    )
