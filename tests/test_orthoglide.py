@@ -12,7 +12,7 @@ from jaxbal.implicit import newton_solve
 from jaxbal.planning import ComLine, EndEffectorLine
 from jaxbal.profiles import BangBang, Quintic
 from jaxbal.robots import orthoglide
-from jaxbal.robots.orthoglide import shaking_peaks, switching_times
+from jaxbal.robots.orthoglide import motion_cases, shaking_peaks, switching_times
 
 P_START = jnp.zeros(3)
 P_END = jnp.array([-0.1, 0.07, -0.11])  # §3
@@ -212,3 +212,15 @@ def test_table1_payload0_and_gradient_through_planner():
 
     assert np.isfinite(grad0)
     assert grad0 == pytest.approx(float(jax.grad(closed_form)(0.0)), rel=1e-8)
+
+
+def test_case4_plan_is_case3_plan_without_payload_error():
+    # reference: §3.3, with Δm = 0 the two plans coincide; with Δm ≠ 0 case 4 keeps the
+    # nominal-payload plan (its COM line ends at the nominal-payload COMs)
+    robot = orthoglide(payload=2.0)
+    plans = motion_cases(robot, P_START, P_END, DURATION, planned_payload=2.0)
+    np.testing.assert_allclose(plans["case3"](0.03), plans["case4"](0.03), atol=1e-15)
+    off = motion_cases(robot, P_START, P_END, DURATION, planned_payload=1.0)
+    nominal = orthoglide(payload=1.0)
+    np.testing.assert_allclose(off["case4"].line.end, nominal.com_of_point(P_END), atol=1e-15)
+    np.testing.assert_allclose(off["case4"](DURATION)[3:], P_END, atol=1e-12)
