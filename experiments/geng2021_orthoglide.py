@@ -33,6 +33,7 @@ SAMPLES = 401
 # parallelograms m·L²/12; see NOTES): slider offset l and the moment reference point.
 SLIDER_OFFSET = 0.069  # m
 MOMENT_REFERENCE = (-0.020, -0.300, 0.010)  # m, base frame
+COM_PAYLOAD = 2.0  # kg: the payload for which §3's COM coordinates are reproduced
 DELTA_M = 0.1  # kg, payload error of §3.3 (not given in the paper)
 DELTA_SWEEP = jnp.linspace(-0.5, 0.5, 21)  # kg, sensitivity curves
 
@@ -95,9 +96,15 @@ def run(ctx) -> Result:
         kin.add(name, "value", rho_i[k], "m", PAPER_RHO[name])
     for k, name in enumerate(PAPER_RHO_F):
         kin.add(name, "value", rho_f[k], "m", PAPER_RHO_F[name])
+    # The paper's COM coordinates are those of the robot carrying 2 kg (see NOTES).
+    loaded = robot_with(COM_PAYLOAD)
+    coms = jnp.concatenate([loaded.com_of_point(start), loaded.com_of_point(end)])
+    for k, name in enumerate(PAPER_COM):
+        kin.add(name, "value", coms[k], "m", PAPER_COM[name])
+        kin.add(name + "_rounded", "value", jnp.round(coms[k], 2), "m", PAPER_COM[name])
     com_i, com_f = robot.com_of_point(start), robot.com_of_point(end)
     for k, name in enumerate(PAPER_COM):
-        kin.add(name, "value", jnp.concatenate([com_i, com_f])[k], "m", PAPER_COM[name])
+        kin.add(name + "_payload0", "value", jnp.concatenate([com_i, com_f])[k], "m")
     a_com = 4 * jnp.linalg.norm(com_f - com_i) / DURATION**2
     kin.add("a_com", "value", a_com, "m/s^2", 38.7)
     swapped = orthoglide(parallelogram_mass=0.248, slider_mass=0.396)
@@ -219,9 +226,17 @@ the reference point c = {c} m and l = {l} m (rms 0.08 %, max 0.13 %). The fit is
 unique (another minimum, c ≈ (−0.26, −0.11, −0.32) m with l ≈ 0.64 m, fits as well but
 is not physical; with l = 0 the best c ≈ (−0.01, −0.31, 0.01) m gives max 1 %); these
 are modelling assumptions, not data from the paper. The moments about O are given in
-`orthoglide2021_table2_origin` for reference. The paper's COM coordinates
-S_i = (0.04, 0.04, 0.04), S_f = (−0.04, 0.09, −0.05) m are not consistent with its own
-38.7 m/s² (their difference would give 58 m/s²) for any l; we do not reproduce them.
+`orthoglide2021_table2_origin` for reference.
+
+**COM coordinates of §3.** S_i = (0.04, 0.04, 0.04), S_f = (−0.04, 0.09, −0.05) m are
+not those of the unloaded robot (their difference would give 58 m/s², not 38.7, for
+any l). They are those of the robot carrying **2 kg**: the COM displacement is then
+(−0.081, 0.050, −0.093) m, and the six rounded values are all reproduced for any
+0.067 m ≤ l ≤ 0.169 m, which contains the l = {l} m found independently from Table 2.
+The table gives them for 2 kg (exact, and rounded to the paper's 0.01 m) and for 0 kg
+(`_payload0`); the
+38.7 m/s² is the unloaded value (2 kg would give 53.4 m/s²). ρ_zf = 0.1750 m is
+printed as 0.17 (0.17496 rounds down).
 
 **Reductions.** The theoretical 30.7 % (1 − 4/(10/√3)) is the reduction of the peak COM
 acceleration; with growing payload the COM tends to P and our case-3 reduction tends to

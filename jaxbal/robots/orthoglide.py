@@ -27,8 +27,10 @@ slider = 0.248 kg* reproduces the paper's own designed COM acceleration (38.72 v
 **The offset l.** The COM displacement D, hence a_com and the shaking force, do not
 depend on l (it adds the constant m_sl·l/M to every component of S). l only moves the
 absolute COM and the sliders' lever arms in the shaking moment about a fixed point.
-The default l = 0 puts the slider COM on its axis; see the experiment for the fit of
-Table 2.
+The default l = 0 puts the slider COM on its axis. The paper's COM coordinates of §3
+(which turn out to be those of the robot carrying 2 kg) are reproduced for
+0.067 m ≤ l ≤ 0.169 m, and the fit of Table 2 gives l ≈ 0.069 m (see the experiment
+``geng2021_orthoglide``).
 
 Coordinates: ``q = (ρ_x, ρ_y, ρ_z, p_x, p_y, p_z)`` [m], the inputs followed by the
 platform point, as returned by :meth:`Orthoglide.inverse_kinematics`. Bodies (in
