@@ -77,8 +77,8 @@ class Table:
 
     id: str
     title: str
-    entries: list[Entry] = field(default_factory=list)
     tolerance: float | None = None  # relative tolerance used to flag misses in REPORT.md
+    entries: list[Entry] = field(default_factory=list, kw_only=True)
 
     def add(self, row, column, value, unit, paper=None) -> None:
         self.entries.append(Entry(row, column, float(value), unit, paper))
