@@ -38,7 +38,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal.dynamics import inverse_dynamics
+from jaxbal.dynamics import inverse_dynamics, mass_matrix
 from jaxbal.momentum import body_com_positions, shaking_wrench
 from jaxbal.robot import Bodies, Robot, concatenate, planar_inertia, rot_z
 from jaxbal.robots.dual_v import OUTWARD, PLATFORM_END, DualV
@@ -51,6 +51,7 @@ __all__ = [
     "base_wrench_from_bearings",
     "bearing_forces",
     "evaluate",
+    "forward_accelerations",
     "joint_motion",
     "paper_torques",
     "torque_split",
@@ -273,6 +274,28 @@ def base_wrench_from_bearings(robot: DualV, bearing, tau) -> tuple[Float[Array, 
     pivots = robot.base_pivots()
     moment = jnp.sum(pivots[:, 0] * on_base[:, 1] - pivots[:, 1] * on_base[:, 0]) - jnp.sum(tau)
     return jnp.sum(on_base, axis=0), moment
+
+
+def forward_accelerations(robot: DualV, q, qd, tau):
+    """Forward dynamics: ``(q̈ (11,), μ (4, 2))`` for actuator torques ``τ`` at ``(q, q̇)``.
+
+    Solves ``M q̈ + h = Bᵀτ + Φ_qᵀμ`` with ``Φ_q q̈ = -(dΦ_q/dt) q̇`` (loop closures of
+    :meth:`DualV.constraint`); ``M`` and ``h`` from Lagrange over all bodies (autodiff).
+    Used to validate the inverse model as the paper does with Spacar (Fig 6).
+    """
+    q, qd, tau = (jnp.asarray(v, dtype=float) for v in (q, qd, tau))
+    mass = mass_matrix(robot, q)
+    bias = inverse_dynamics(robot, q, qd, jnp.zeros_like(q))
+    phi_q = jax.jacfwd(robot.constraint)(q)
+
+    def constraint_rate(q_):
+        return jax.jvp(robot.constraint, (q_,), (qd,))[1]
+
+    gamma = jax.jvp(constraint_rate, (q,), (qd,))[1]
+    kkt = jnp.block([[mass, -phi_q.T], [phi_q, jnp.zeros((8, 8))]])
+    rhs = jnp.concatenate([jnp.zeros(11).at[:4].set(tau) - bias, -gamma])
+    solution = jnp.linalg.solve(kkt, rhs)
+    return solution[:11], solution[11:].reshape(4, 2)
 
 
 class MotionSample(NamedTuple):
