@@ -50,7 +50,7 @@ from jaxbal.robot import Robot
 
 #: Mass [kg] and isotropic inertia [kg·m²] of the (never accelerated) base body and of
 #: helper bodies that are not jaxbal bodies (MuJoCo needs mass on bodies with joints).
-BASE_MASS = 1e-12
+BASE_MASS = 1e-14
 #: Names and types of the six base dofs, in qpos/qvel order.
 BASE_JOINTS = ("base_x", "base_y", "base_z", "base_rx", "base_ry", "base_rz")
 _BASE_TYPES = ("slide",) * 3 + ("hinge",) * 3
@@ -300,7 +300,7 @@ def mujoco_inertials(robot: Robot, tree: Tree) -> Inertials:
     Principal moments violating the triangle inequality are padded as in
     :func:`realisable_inertia`; a moving body gets at least :data:`BASE_MASS` in each
     principal moment, and :data:`BASE_MASS` of mass if it and the bodies welded to it
-    are massless (MuJoCo's ``mjMINVAL`` check); the induced error is ~1e-12 of the
+    are massless (MuJoCo's ``mjMINVAL`` check); the induced error is ~1e-14 of the
     body's acceleration [N] or angular acceleration [N·m].
     """
     bodies = robot.mass_properties()

@@ -268,7 +268,7 @@ def prescribed_tree(robot: Robot) -> Tree:
     accelerations) are jaxbal's own ``body_frames`` and its derivatives; MuJoCo then
     checks the Newton-Euler sum of the bodies' momenta about the base origin. Valid
     for closed chains too. The joints sit on massless helper bodies (mass
-    :data:`BASE_MASS`, a relative error ~1e-13) carrying the welded jaxbal bodies.
+    :data:`BASE_MASS`, a relative error ~1e-15) carrying the welded jaxbal bodies.
     Its ``state`` gives slide positions and ball quaternions, the velocities and
     accelerations in MuJoCo's convention (a ball joint's velocity is the angular
     velocity in the body frame, not the derivative of its quaternion).

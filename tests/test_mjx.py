@@ -4,7 +4,7 @@ Reference: MuJoCo's recursive Newton-Euler inverse dynamics (``mj_inverse``,
 ``mjx.inverse``) on models whose kinematics come from each robot's own geometric
 parameters (:mod:`jaxbal.mjx_trees`), not from jaxbal's ``body_frames``.
 Tolerances: 1e-9 relative for every robot (trees and closed chains alike; both sides
-are exact to round-off and agree to ~1e-12 -- the margin covers MuJoCo's 1e-12
+are exact to round-off and agree to ~1e-14 -- the margin covers MuJoCo's 1e-14
 inertia floor on point masses with joints).
 """
 
@@ -188,8 +188,8 @@ def test_prescribed_fallback_agrees():
 
 
 def test_mjx_matches_and_gradient_wrt_counter_mass():
-    """MJX (vmap over time) = jaxbal, and d(peak shaking force)/d(counter-masses) from
-    jaxbal and through mjx.inverse agree (1e-9 relative)."""
+    """MJX (vmap over time and over designs) = jaxbal, and d(peak shaking force)/
+    d(counter-masses) from jaxbal and through mjx.inverse agree (1e-9 relative)."""
     robot = planar_2r()
     robot = eqx.tree_at(lambda r: r.counter_distances, robot, jnp.array([0.1, 0.05]))
     q, qd, qdd = (jnp.asarray(a) for a in _random_states(2, 4, seed=3))
@@ -205,18 +205,27 @@ def test_mjx_matches_and_gradient_wrt_counter_mass():
         )
         return jnp.max(jnp.linalg.norm(force, axis=-1)), (force, moment)
 
+    @jax.jit
     def peak_jaxbal(mass):
         design = with_counter(mass)
         force, _ = jax.vmap(lambda a, b, c: jaxbal.shaking_wrench(design, a, b, c))(q, qd, qdd)
         return jnp.max(jnp.linalg.norm(force, axis=-1))
 
-    (peak, (force, moment)), grad_mjx = jax.jit(jax.value_and_grad(peak_mjx, has_aux=True))(counter)
-    reference = jax.vmap(lambda a, b, c: jaxbal.shaking_wrench(with_counter(counter), a, b, c))(
-        q, qd, qdd
-    )
+    @jax.jit
+    def evaluate(mass, designs):
+        (peak, aux), grad = jax.value_and_grad(peak_mjx, has_aux=True)(mass)
+        return peak, aux, grad, jax.vmap(lambda m: peak_mjx(m)[0])(designs)  # vmap designs
+
+    designs = jnp.array([[0.0, 0.0], [3.0, 1.0], [10.0, 2.0]])
+    peak, (force, moment), grad_mjx, design_peaks = evaluate(counter, designs)
+    for design, design_peak in zip(designs, design_peaks, strict=True):
+        assert design_peak == pytest.approx(float(peak_jaxbal(design)), rel=TOL)
+    reference = jax.jit(
+        jax.vmap(lambda a, b, c: jaxbal.shaking_wrench(with_counter(counter), a, b, c))
+    )(q, qd, qdd)
     np.testing.assert_allclose(force, reference[0], rtol=TOL, atol=TOL * 100)
     np.testing.assert_allclose(moment, reference[1], rtol=TOL, atol=TOL * 100)
-    grad_jaxbal = jax.grad(peak_jaxbal)(counter)
+    grad_jaxbal = jax.jit(jax.grad(peak_jaxbal))(counter)
     assert np.all(np.isfinite(grad_mjx)) and np.abs(grad_jaxbal).max() > 1.0
     np.testing.assert_allclose(grad_mjx, grad_jaxbal, rtol=TOL)
     assert peak == pytest.approx(float(peak_jaxbal(counter)), rel=TOL)
@@ -268,7 +277,7 @@ def test_mjcf_export_loads_with_masses_and_actuators():
 
 def test_bad_input_raises_and_massless_link_is_handled():
     """Wrong shapes / unknown names raise ValueError; a massless moving link compiles
-    (MuJoCo's minimum mass, 1e-12 kg) and still agrees."""
+    (MuJoCo's minimum mass, 1e-14 kg) and still agrees."""
     robot = planar_2r()
     with pytest.raises(ValueError, match="shape"):
         mujoco_base_reaction(robot, np.zeros(3), np.zeros(3), np.zeros(3))
