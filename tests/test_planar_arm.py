@@ -232,6 +232,8 @@ def test_unreachable_com_raises_naming_target(arm):
         jnp.array([2.5, 0.0])
     )
     assert not bool(valid)
+    _, valid = arm.com_inverse_kinematics(jnp.array([2.5, 0.0]), return_valid=True)
+    assert not bool(valid)  # eager, with a mask asked for: no exception
 
 
 def test_unreachable_pose_and_bad_inputs(arm):

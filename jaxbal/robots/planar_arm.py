@@ -190,7 +190,8 @@ class PlanarArm(Robot):
         l1, l2 = self.lengths[0], self.lengths[1]
         cos_q2 = (jnp.sum(target**2) - l1**2 - l2**2) / (2.0 * l1 * l2)
         valid = jnp.abs(cos_q2) <= 1.0
-        raise_if_invalid(valid, "end-effector pose outside the workspace", pose)
+        if not return_valid:
+            raise_if_invalid(valid, "end-effector pose outside the workspace", pose)
         cos_q2 = jnp.clip(cos_q2, -1.0 + 1e-15, 1.0 - 1e-15)
         q2 = mode * jnp.arccos(cos_q2)
         q1 = jnp.arctan2(target[1], target[0]) - jnp.arctan2(
@@ -235,7 +236,8 @@ class PlanarArm(Robot):
         c = jnp.sum(target**2) + l_eq[0] ** 2 - l_eq[1] ** 2
         discriminant = b**2 - c**2 + a**2
         valid = discriminant >= 0.0
-        raise_if_invalid(valid, "COM target not reachable by the arm", com)
+        if not return_valid:
+            raise_if_invalid(valid, "COM target not reachable by the arm", com)
         root = jnp.sqrt(jnp.maximum(discriminant, 1e-30))
         # eq (10): t = (−b ± √Δ)/(c − a) = (c + a)/(−b ∓ √Δ); use the larger denominator.
         den1 = c - a
