@@ -102,7 +102,10 @@ def mujoco_model(robot: Robot, gravity=None, tree: Tree | None = None) -> Mujoco
         robot: a concrete robot (not traced).
         gravity: ``(3,)`` [m/s²], default zero.
         tree: default :func:`jaxbal.mjcf.robot_tree` (registered builder, else the
-            less independent :func:`jaxbal.mjcf.prescribed_tree`).
+            less independent :func:`jaxbal.mjx_trees.prescribed_tree`).
+
+    The ``MjModel`` is cached and shared between calls with the same MJCF: copy it
+    (``copy.copy(model)``) before changing its options.
     """
     tree = robot_tree(robot, fallback=True) if tree is None else tree
     gravity = np.zeros(3) if gravity is None else np.asarray(gravity, dtype=float)
@@ -256,6 +259,10 @@ def mjx_base_reaction(
     return force, -data.qfrc_inverse[3:6]
 
 
+#: ``mjx_base_reaction`` over ``(T, dof)`` states, jitted once per robot structure.
+_mjx_along = jax.jit(jax.vmap(mjx_base_reaction, in_axes=(None, None, 0, 0, 0)))
+
+
 # --- confirmation -----------------------------------------------------------------------
 
 
@@ -342,9 +349,7 @@ def confirm(
         independent = (robot_tree(robot, fallback=True) if tree is None else tree).independent
     elif engine == "mjx":
         compiled = mjx_model(robot, gravity, tree)
-        force, moment = jax.jit(jax.vmap(mjx_base_reaction, in_axes=(None, None, 0, 0, 0)))(
-            compiled, robot, q, qd, qdd
-        )
+        force, moment = _mjx_along(compiled, robot, q, qd, qdd)
         independent = compiled.tree.independent
     else:
         raise ValueError(f"engine must be 'mujoco' or 'mjx', got {engine!r}")
