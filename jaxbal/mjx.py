@@ -31,7 +31,9 @@ References:
 
 from __future__ import annotations
 
+import contextlib
 import functools
+import io
 from typing import NamedTuple
 
 import equinox as eqx
@@ -39,7 +41,9 @@ import jax
 import jax.numpy as jnp
 import mujoco
 import numpy as np
-from mujoco import mjx
+
+with contextlib.redirect_stdout(io.StringIO()):  # MJX prints "Failed to import warp" (harmless)
+    from mujoco import mjx
 
 from jaxbal.mjcf import BASE_MASS, Tree, mujoco_inertials, robot_tree, to_mjcf, tree_state
 from jaxbal.momentum import shaking_wrench
