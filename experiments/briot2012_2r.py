@@ -19,6 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import jaxbal  # noqa: E402
+from jaxbal.mjx import confirm_path  # noqa: E402
 from jaxbal.planning import (  # noqa: E402
     ComLine,
     EndEffectorLine,
@@ -40,6 +41,7 @@ CENTRE, EDGE = (0.0, 0.475), 0.45  # m, Fig 3
 ELBOW = -1  # end-effector IK branch whose COM IK is the "+" mode of eq (10)
 COM_MODE = 1
 SAMPLES = 2001
+MJX_SAMPLES = 51  # samples per trajectory for the MJX confirmation
 
 # Table 1 of the paper (max shaking force norm, N), in the order of BRIOT2012_PATHS.
 PAPER_TABLE1 = {
@@ -78,6 +80,8 @@ def run(ctx) -> Result:
     points = square_points(CENTRE, EDGE)
     times = jaxbal.sample_times(DURATION, SAMPLES)
     table = Table("briot2012_table1", "2R: max shaking force norm", tolerance=0.03)
+    mjx_table = Table("briot2012_table1_mjx", "2R: max relative difference jaxbal vs MJX")
+    mjx_times = jaxbal.sample_times(DURATION, MJX_SAMPLES)
     plans, curves = {}, {}
     for index, (a, b) in enumerate(BRIOT2012_PATHS):
         name = path_name(a, b)
@@ -87,6 +91,8 @@ def run(ctx) -> Result:
         for case, path in laws.items():
             forces = _forces(robot, path, times)
             table.add(name, case, peak_norm(forces), "N", PAPER_TABLE1[case][index])
+            agreement = confirm_path(robot, path, mjx_times, engine="mjx")
+            mjx_table.add(name, case, agreement.relative, "-")
             if name == "P5P9":
                 curves[case] = jnp.linalg.norm(forces, axis=-1)
     fig, ax = plt.subplots(figsize=(6, 3.5))
@@ -114,7 +120,9 @@ def run(ctx) -> Result:
         )
     notes = NOTES + "\n\nOptimised trapezoid switch times (fractions of T):\n\n" + "\n".join(rows)
     notes += "\n\n" + TORQUE_NOTES
-    return Result(tables=[table, torque_table], figures=[figure, torque_figure], notes=notes)
+    return Result(
+        tables=[table, mjx_table, torque_table], figures=[figure, torque_figure], notes=notes
+    )
 
 
 def input_torques(ctx, robot, points, times):

@@ -27,12 +27,28 @@ from jaxbal.trajectory import StraightLine, sample, sample_times, time_derivativ
 
 __version__ = "0.1.0"
 
+
+def __getattr__(name):
+    # jaxbal.confirm / jaxbal.mjx import MuJoCo lazily (slow to import, optional at use).
+    if name in ("confirm", "confirm_path"):
+        from jaxbal import mjx
+
+        return getattr(mjx, name)
+    if name == "mjx":
+        import importlib
+
+        return importlib.import_module("jaxbal.mjx")
+    raise AttributeError(f"module 'jaxbal' has no attribute {name!r}")
+
+
 __all__ = [
     "Bodies",
     "Robot",
     "StraightLine",
     "body_com_positions",
     "center_of_mass",
+    "confirm",
+    "confirm_path",
     "inverse_dynamics",
     "inverse_dynamics_rate",
     "kinetic_energy",

@@ -37,17 +37,21 @@ def list_experiments():
 
 @app.command("export-mjcf")
 def export_mjcf(
-    robot: str = typer.Argument(..., help="constructor in jaxbal.robots, e.g. planar_2r, scara"),
-    gravity: float = typer.Option(0.0, help="gravity along -z [m/s²] (0: none, as in the papers)"),
+    robot: str = typer.Argument(..., help="2r, 3r, scara, dual-v or orthoglide"),
+    gravity: bool = typer.Option(False, help="include gravity (0, 0, -9.81) m/s²"),
+    base_joints: bool = typer.Option(False, help="mount the robot on the 6 base dofs"),
 ):
-    """Print the MJCF (MuJoCo XML) of a jaxbal robot with its nominal parameters."""
-    import jaxbal
-    from jaxbal.mjcf import to_mjcf
+    """Print the MJCF (MuJoCo XML) of a robot with its nominal parameters.
 
-    constructor = getattr(jaxbal.robots, robot, None)
-    if constructor is None or not callable(constructor):
-        raise typer.BadParameter(f"unknown robot {robot!r}; try one of {jaxbal.robots.__all__}")
-    typer.echo(to_mjcf(constructor(), gravity=(0.0, 0.0, 0.0 - abs(gravity))))
+    View it with ``python -m mujoco.viewer --mjcf robot.xml``.
+    """
+    from jaxbal.mjcf import export_mjcf as to_xml
+
+    try:
+        xml = to_xml(robot, gravity=(0.0, 0.0, -9.81) if gravity else None, base_joints=base_joints)
+    except ValueError as error:
+        raise typer.BadParameter(str(error)) from error
+    typer.echo(xml)
 
 
 if __name__ == "__main__":

@@ -71,3 +71,14 @@ def test_reproduce_writes_report_and_plot(table1):
     assert "briot2012_table1" in report and "P15P7" in report
     assert (out / "briot2012_fig5_2r_shaking_force.png").stat().st_size > 1000
     assert not list(out.glob("*.tmp"))
+
+
+def test_cli_export_mjcf_loads_in_mujoco():
+    import mujoco
+
+    result = CliRunner().invoke(app, ["export-mjcf", "2r"])
+    assert result.exit_code == 0, result.output
+    model = mujoco.MjModel.from_xml_string(result.output)
+    assert model.nv == 2
+    bad = CliRunner().invoke(app, ["export-mjcf", "no-such-robot"])
+    assert bad.exit_code != 0 and "unknown robot" in bad.output
