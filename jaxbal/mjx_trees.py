@@ -44,6 +44,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._linalg import vee
 from jaxbal.mjcf import Connect, Joint, Tree, TreeBody, _matrix_to_quat, register_tree
 from jaxbal.robot import Robot
 from jaxbal.robots.planar_arm import PlanarArm
@@ -299,7 +300,7 @@ def prescribed_tree(robot: Robot) -> Tree:
 
         def twist(q_, qd_):
             (origins, rotations), (velocities, rates) = jax.jvp(frames, (q_,), (qd_,))
-            omega_local = _vee(jnp.einsum("nji,njk->nik", rotations, rates))
+            omega_local = vee(jnp.einsum("nji,njk->nik", rotations, rates))
             return velocities, omega_local
 
         (velocities, omega), (accelerations, omega_dot) = jax.jvp(twist, (q, qd), (qd, qdd))
@@ -308,10 +309,6 @@ def prescribed_tree(robot: Robot) -> Tree:
         return coordinates(q), qvel, qacc
 
     return Tree(bodies=bodies, coordinates=coordinates, independent=False, state=state)
-
-
-def _vee(skew):
-    return jnp.stack([skew[..., 2, 1], skew[..., 0, 2], skew[..., 1, 0]], -1)
 
 
 def _register(module: str, name: str, builder) -> None:

@@ -241,7 +241,7 @@ def test_invalid_parameters_raise():
 
 def test_mujoco_confirms_wrench_and_reactionless_motion(unbalanced_wrench):
     # Reference: MuJoCo C inverse dynamics on a tree built from the lengths
-    # (jaxbal.robots.scara.scara_tree), 1e-9 relative; gravity included.
+    # (jaxbal.mjx_trees.scara_tree), 1e-9 relative; gravity included.
     from jaxbal.mjx import mujoco_base_reaction
 
     robot = sb.force_balanced(general_scara())

@@ -53,7 +53,6 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal.mjcf import Joint, Tree, TreeBody, register_tree
 from jaxbal.profiles import Profile, Quintic
 from jaxbal.robot import Bodies, Robot, concatenate, planar_inertia, point_masses, rot_z
 from jaxbal.types import Array, Float, ScalarLike
@@ -66,7 +65,6 @@ __all__ = [
     "check_reachable",
     "joint_trajectory",
     "scara",
-    "scara_tree",
 ]
 
 
@@ -206,58 +204,12 @@ class Scara(Robot):
         x, y = pose[0], pose[1]
         cos_q2 = (x**2 + y**2 - l1**2 - l2**2) / (2.0 * l1 * l2)
         valid = jnp.abs(cos_q2) <= 1.0
-        raise_if_invalid(valid, "SCARA end-effector pose out of reach (x, y, φ, z)", pose)
+        if not return_valid:
+            raise_if_invalid(valid, "SCARA end-effector pose out of reach (x, y, φ, z)", pose)
         q2 = mode * jnp.arccos(jnp.clip(cos_q2, -1.0 + 1e-15, 1.0 - 1e-15))
         q1 = jnp.arctan2(y, x) - jnp.arctan2(l2 * jnp.sin(q2), l1 + l2 * jnp.cos(q2))
         q = jnp.stack([q1, q2, pose[2] - q1 - q2, pose[3]])
         return (q, valid) if return_valid else q
-
-
-@register_tree(Scara)
-def scara_tree(robot: Scara) -> Tree:
-    """MuJoCo tree of the SCARA from its lengths (independent of :meth:`Scara.body_frames`).
-
-    z-hinges θ1 at O1 and θ2 at O2; the end-effector on a z-slide d4 and a z-hinge θ3 at
-    O3; the vertical counterweight on its own z-slide at O3, driven at ``−d4`` (the
-    cable's constraint force is internal to the robot, so the base reaction only needs
-    the motion). Counter-masses and payload are welded to their links.
-    """
-    l1, l2 = (float(v) for v in np.asarray(robot.lengths))
-    z = (0.0, 0.0, 1.0)
-    bodies = (
-        TreeBody("link1", None, joints=(Joint("theta1", "hinge", z),), visual_to=(l1, 0, 0)),
-        TreeBody("counter_mass1", "link1"),
-        TreeBody(
-            "link2",
-            "link1",
-            pos=(l1, 0.0, 0.0),
-            joints=(Joint("theta2", "hinge", z),),
-            visual_to=(l2, 0, 0),
-        ),
-        TreeBody("counter_mass2", "link2"),
-        TreeBody(
-            "end_effector",
-            "link2",
-            pos=(l2, 0.0, 0.0),
-            joints=(Joint("d4", "slide", z), Joint("theta3", "hinge", z)),
-        ),
-        TreeBody("counter_mass3", "end_effector"),
-        TreeBody("payload", "end_effector"),
-        TreeBody(
-            "vertical_counterweight",
-            "link2",
-            pos=(l2, 0.0, 0.0),
-            joints=(Joint("d4_counterweight", "slide", z),),
-        ),
-    )
-
-    def coordinates(q):
-        q = jnp.asarray(q, dtype=float)
-        return jnp.stack([q[0], q[1], q[3], q[2], -q[3]])
-
-    return Tree(
-        bodies=bodies, coordinates=coordinates, actuated=("theta1", "theta2", "d4", "theta3")
-    )
 
 
 def scara(payload: ScalarLike = 0.0, vertical_counterweight: ScalarLike = 0.0) -> Scara:
