@@ -18,7 +18,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import jaxbal  # noqa: E402
-from jaxbal.mjx import confirm_path, mujoco_base_reaction  # noqa: E402
+from jaxbal.mjx import confirm, mujoco_base_reaction  # noqa: E402
 from jaxbal.planning import peak_norm  # noqa: E402
 from jaxbal.planning import wrench_along as _wrench_along  # noqa: E402
 from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
@@ -169,7 +169,7 @@ def run(ctx) -> Result:
         joint_trajectory(joint_inertia_variant, PAPER_MOVE),
     )
     for name, (r, path) in mjx_cases.items():
-        confirmation = confirm_path(r, path, mjx_times, engine="mjx")
+        confirmation = confirm(r, *sample_jit(path, mjx_times), engine="mjx")
         mjx_table.add(name, "force_rel", confirmation.force_relative, "-")
         mjx_table.add(name, "moment_rel", confirmation.moment_relative, "-")
 
