@@ -7,6 +7,7 @@ results are identical. Private helpers of :mod:`jaxbal.momentum` and
 :mod:`jaxbal.dynamics`.
 """
 
+import jax
 import jax.numpy as jnp
 
 
@@ -45,3 +46,19 @@ def vee(skew):
 def weighted_sum(weights, vectors):
     """``Σ_n w_n v_n`` for ``(n,)`` weights and ``(n, 3)`` vectors."""
     return jnp.sum(weights[:, None] * vectors, axis=0)
+
+
+@jax.custom_jvp
+def cos_sin(angle):
+    """``(cos θ, sin θ)`` whose derivatives reuse the two values instead of calling the
+    transcendental functions again (``d cos = −sin dθ``, ``d sin = cos dθ``). Nested
+    forward-mode differentiation (the shaking wrench is second order in time) then
+    evaluates each sine and cosine once."""
+    return jnp.cos(angle), jnp.sin(angle)
+
+
+@cos_sin.defjvp
+def _cos_sin_jvp(primals, tangents):
+    (angle,), (dangle,) = primals, tangents
+    c, s = cos_sin(angle)
+    return (c, s), (-s * dangle, c * dangle)

@@ -25,6 +25,7 @@ import abc
 import equinox as eqx
 import jax.numpy as jnp
 
+from jaxbal._linalg import cos_sin
 from jaxbal.types import Coordinates, Inertias, Masses, Points, Rotations
 from jaxbal.validation import check_nonnegative
 
@@ -110,13 +111,17 @@ class Robot(eqx.Module):
 
 def rot_z(angle) -> jnp.ndarray:
     """``(..., 3, 3)`` rotation matrices about z by ``angle`` [rad]."""
-    angle = jnp.asarray(angle)
-    c, s = jnp.cos(angle), jnp.sin(angle)
-    zero, one = jnp.zeros_like(angle), jnp.ones_like(angle)
+    return rot_z_from(*cos_sin(jnp.asarray(angle)))
+
+
+def rot_z_from(cos, sin) -> jnp.ndarray:
+    """``(..., 3, 3)`` rotations about z from precomputed ``cos`` and ``sin`` of the angle
+    (lets a robot share one sine/cosine between its rotations and its positions)."""
+    zero, one = jnp.zeros_like(cos), jnp.ones_like(cos)
     return jnp.stack(
         [
-            jnp.stack([c, -s, zero], -1),
-            jnp.stack([s, c, zero], -1),
+            jnp.stack([cos, -sin, zero], -1),
+            jnp.stack([sin, cos, zero], -1),
             jnp.stack([zero, zero, one], -1),
         ],
         -2,

@@ -31,7 +31,15 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from jaxbal.robot import Bodies, Robot, concatenate, planar_inertia, point_masses, rot_z
+from jaxbal._linalg import cos_sin
+from jaxbal.robot import (
+    Bodies,
+    Robot,
+    concatenate,
+    planar_inertia,
+    point_masses,
+    rot_z_from,
+)
 from jaxbal.types import Array, Float
 from jaxbal.validation import check_nonnegative, check_shape, raise_if_invalid
 
@@ -41,7 +49,7 @@ def _wrap(angle):
 
 
 def _unit(angle):
-    return jnp.stack([jnp.cos(angle), jnp.sin(angle)], -1)
+    return jnp.stack(cos_sin(angle), -1)
 
 
 def _partial_sums(values):
@@ -133,19 +141,21 @@ class PlanarArm(Robot):
 
     def body_frames(self, q):
         check_shape("q", q, (self.n_links,))
-        theta = _partial_sums(q)
-        joints = self.joint_positions(q)
+        cos, sin = cos_sin(_partial_sums(q))  # one sine and cosine per link
+        joints = self._joints(cos, sin)
         origins2d = jnp.concatenate([joints[:-1], joints[:-1], joints[-1:]], axis=0)
         origins = jnp.concatenate([origins2d, jnp.zeros((origins2d.shape[0], 1))], axis=-1)
-        rotations = rot_z(jnp.concatenate([theta, theta, theta[-1:]]))
+        rotations = rot_z_from(*(jnp.concatenate([v, v, v[-1:]]) for v in (cos, sin)))
         return origins, rotations
 
     # --- kinematics ----------------------------------------------------------------
 
     def joint_positions(self, q) -> Float[Array, "n+1 2"]:
         """Positions of O, A, B, … and the tip in the plane [m], shape ``(n + 1, 2)``."""
-        theta = _partial_sums(jnp.asarray(q, dtype=float))
-        steps = self.lengths[:, None] * _unit(theta)
+        return self._joints(*cos_sin(_partial_sums(jnp.asarray(q, dtype=float))))
+
+    def _joints(self, cos, sin):
+        steps = self.lengths[:, None] * jnp.stack([cos, sin], -1)
         return jnp.concatenate([jnp.zeros((1, 2)), _partial_sums(steps)], axis=0)
 
     def end_effector(self, q) -> Float[Array, "3"]:
