@@ -1,0 +1,153 @@
+"""MuJoCo confirms jaxbal: the DUAL-V torques by open-loop forward simulation (the check
+of van der Wijk et al. 2013, Fig 6, with MuJoCo in place of Spacar).
+
+The base-reaction agreement of every robot is in that robot's own experiment (the
+``*_mjx`` tables, from :func:`jaxbal.mjx.confirm`).
+
+Motion: two rest-to-rest quintic moves of the platform, a translation-heavy one
+(x −0.1 → 0.1 m, y −0.175 → 0.175 m, θ5 0 → 0.1 rad in 0.1 s; peak 115 m/s² along x,
+202 m/s² along y, as the paper's 118 and 202) followed by a rotation-heavy one
+(θ5 0.1 → −0.3 rad in 0.0345 s; peak 1940 rad/s², paper 1612).
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import matplotlib
+import numpy as np
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+import jaxbal  # noqa: E402
+from jaxbal.mjx_simulate import simulate_open_loop  # noqa: E402
+from jaxbal.profiles import Quintic  # noqa: E402
+from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
+from jaxbal.robots.dual_v import dual_v  # noqa: E402
+from jaxbal.robots.dual_v_dynamics import paper_torques, virtual_work_torques  # noqa: E402
+
+START = jnp.array([-0.1, -0.175, 0.0])  # m, m, rad
+MIDDLE = jnp.array([0.1, 0.175, 0.1])
+END = jnp.array([0.1, 0.175, -0.3])
+FIRST, SECOND = 0.1, 0.0345  # s
+TIMESTEPS = (1e-4, 5e-5, 2.5e-5)  # s; 1e-4 s is the paper's maximal ODE45 step
+TRACKED = ("x5", "y5", "theta5")
+COLUMNS = (("x5 [m]", "m"), ("y5 [m]", "m"), ("θ5 [rad]", "rad"))
+# Stated pass criterion (see the notes): order-2 convergence in dt, and a dt → 0
+# (Richardson) tracking error below these bounds [m, m, rad].
+ORDER_RANGE = (1.9, 2.1)
+EXTRAPOLATED_BOUND = (1e-9, 1e-9, 1e-8)
+
+
+def pose(t):
+    """Planned platform pose ``(x5, y5, θ5)`` at time ``t`` [s]."""
+    quintic = Quintic()
+    first = quintic(jnp.clip(t / FIRST, 0.0, 1.0))
+    second = quintic(jnp.clip((t - FIRST) / SECOND, 0.0, 1.0))
+    return START + first * (MIDDLE - START) + second * (END - MIDDLE)
+
+
+def run(ctx) -> Result:
+    robot = dual_v()
+    duration = FIRST + SECOND
+
+    def path(t):
+        return robot.inverse_kinematics(pose(t))
+
+    def paper(t):
+        u, ud, udd = jaxbal.time_derivatives(pose, t, 2)[:3]
+        return paper_torques(robot, robot.inverse_kinematics(u), ud, udd)
+
+    def minimum_norm(t):
+        return virtual_work_torques(robot, *jaxbal.time_derivatives(pose, t, 2)[:3])
+
+    table = Table("mujoco_dualv_tracking", "DUAL-V open-loop tracking in MuJoCo (max error)")
+    runs, passed, limits = {}, {}, {}
+    for name, efforts in (("paper eqs (3)-(29)", paper), ("min-norm virtual work", minimum_norm)):
+        for dt in TIMESTEPS:
+            ctx.progress(f"MuJoCo {name}, dt = {dt:g} s")
+            every = max(1, int(round(1e-4 / dt)))
+            result = simulate_open_loop(
+                robot, path, efforts, duration, TRACKED, timestep=dt, record_every=every
+            )
+            row = f"{name}, dt = {dt:g} s"
+            for k, (column, unit) in enumerate(COLUMNS):
+                table.add(row, column, result.error[k], unit)
+            table.add(row, "loop closure", result.constraint_violation, "m")
+            runs[(name, dt)] = result
+        # Richardson on the two finest steps (same recorded instants): the dt → 0 motion.
+        coarse, fine = runs[(name, TIMESTEPS[-2])], runs[(name, TIMESTEPS[-1])]
+        limit = (4.0 * fine.simulated - coarse.simulated) / 3.0
+        extrapolated = np.max(np.abs(limit - fine.planned), axis=0)
+        order = np.log2(coarse.error / fine.error)
+        for k, (column, unit) in enumerate(COLUMNS):
+            table.add(f"{name}, extrapolated dt → 0", column, extrapolated[k], unit)
+            table.add(f"{name}, observed order in dt", column, order[k], "-")
+        limits[name] = extrapolated
+        passed[name] = bool(
+            np.all((order > ORDER_RANGE[0]) & (order < ORDER_RANGE[1]))
+            and np.all(extrapolated < np.asarray(EXTRAPOLATED_BOUND))
+        )
+    sensitivity = simulate_open_loop(robot, path, paper, duration, TRACKED, effort_scale=1.001)
+    row = "paper torques × 1.001, dt = 1e-4 s"
+    for k, (column, unit) in enumerate(COLUMNS):
+        table.add(row, column, sensitivity.error[k], unit)
+
+    reference = runs[("paper eqs (3)-(29)", TIMESTEPS[0])]
+    fig, ax = plt.subplots(figsize=(6, 3.5))
+    for k, label in enumerate(("x5 [m]", "y5 [m]", "θ5 [rad]")):
+        ax.semilogy(
+            reference.times,
+            np.abs(reference.simulated[:, k] - reference.planned[:, k]) + 1e-16,
+            label=label,
+        )
+    ax.set(xlabel="time [s]", ylabel="|simulated − planned|", title="DUAL-V, MuJoCo, dt = 1e-4 s")
+    ax.legend(fontsize=8)
+    figure = save_figure(fig, ctx.figure_path("mujoco_dualv_tracking"))
+    settings = reference.settings
+    worst = reference.error
+    limit_paper = limits["paper eqs (3)-(29)"]
+    notes = f"""
+jaxbal's actuator torques drive MuJoCo's DUAL-V (generated by `jaxbal.mjcf` from the
+robot's geometry: four RR arms, the platform on a planar joint, the loops closed by
+`connect` equalities) open-loop from the planned initial state; no feedback. Motion: a
+translation-heavy quintic move (peaks 115 m/s² along x, 202 m/s² along y; paper 118 and
+202) then a rotation-heavy one (peak 1940 rad/s²; paper 1612), 0.1345 s in all.
+
+**Constraint settings.** RK4, control held at its mid-step value; loop closures solref =
+(2·dt, 1) (time constant, critical damping), solimp = {settings["solimp"]} (99.99 % of the
+constraint force from the exact solution), {settings["solver"]}. The soft constraints
+allow a loop-closure violation of ~(1 − 0.9999)·a·(2·dt)² ≈ 4e-10 m at dt = 1e-4 s; the
+measured one ("loop closure", up to {reference.constraint_violation:.1e} m) is dominated by
+the integration error and falls as dt² with it.
+
+**Stated tracking error and why.** At the paper's maximal step dt = 1e-4 s the platform
+stays within {worst[0]:.1e} m (x5), {worst[1]:.1e} m (y5) and {worst[2]:.1e} rad (θ5) of
+the plan. This is time discretisation, not a model error: it falls as dt² (rows "observed
+order"), and Richardson extrapolation of the two finest runs (dt → 0, rows
+"extrapolated") leaves {limit_paper[0]:.0e} m, {limit_paper[1]:.0e} m and
+{limit_paper[2]:.0e} rad, near the 1e-12 solver tolerance of the paper's Spacar check
+(whose constraints are exact; MuJoCo's are soft). Our stated criterion: observed order in
+{ORDER_RANGE} and extrapolated error < {EXTRAPOLATED_BOUND[0]:g} m, {EXTRAPOLATED_BOUND[2]:g}
+rad; met for the paper torques: {passed["paper eqs (3)-(29)"]}, for the min-norm torques:
+{passed["min-norm virtual work"]}. The check is sensitive: torques 0.1 % off drift the
+platform by {sensitivity.error[1]:.1e} m and {sensitivity.error[2]:.1e} rad (last row);
+the drift is linear in the torque error, so at dt = 1e-4 s already a torque error above
+~{1e-3 * np.max(worst / sensitivity.error):.0e} relative exceeds the discretisation
+error, and after extrapolation one above
+~{1e-3 * np.max(limit_paper / sensitivity.error):.0e}.
+Both torque distributions give the same motion: they differ by an internal preload along
+null(Jᵀ), which the platform does not feel.
+"""
+    return Result(tables=[table], figures=[figure], notes=notes)
+
+
+EXPERIMENT = Experiment(
+    name="mujoco_confirmation",
+    title="MuJoCo confirms the DUAL-V torques by forward simulation (Fig 6 check)",
+    run=run,
+    paper=(
+        "van der Wijk, Krut, Pierrot, Herder (2013), Int. J. Robotics Research, pp. 743-758, "
+        "doi:10.1177/0278364913484183, Fig 6"
+    ),
+)
