@@ -168,14 +168,23 @@ def render_report(results: list[tuple[Experiment, Result]]) -> str:
 
 def render_summary(results: list[tuple[Experiment, Result]]) -> str:
     """The short table of reproduced results quoted in README.md."""
-    lines = ["| table | numbers | with a paper value | worst relative difference |"]
-    lines.append("|---|---:|---:|---:|")
+    lines = [
+        "| table | numbers | with a paper value | within the table's tolerance "
+        "| worst relative difference |",
+        "|---|---:|---:|---:|---:|",
+    ]
     for _, result in results:
         for table in result.tables:
-            compared = [e for e in table.entries if e.paper is not None]
+            compared = [e for e in table.entries if e.relative_difference is not None]
             worst = table.worst_relative_difference()
             worst_text = "—" if worst is None else f"{100 * worst:.2f}%"
+            if table.tolerance is None or not compared:
+                within = "—"
+            else:
+                ok = sum(abs(e.relative_difference) <= table.tolerance for e in compared)
+                within = f"{ok}/{len(compared)} ({100 * table.tolerance:g}%)"
             lines.append(
-                f"| `{table.id}` | {len(table.entries)} | {len(compared)} | {worst_text} |"
+                f"| `{table.id}` | {len(table.entries)} | {len(compared)} | {within} "
+                f"| {worst_text} |"
             )
     return "\n".join(lines)
