@@ -155,3 +155,26 @@ def smooth_peak(values: Float[Array, " t"], temperature: ScalarLike) -> Float[Ar
     """
     magnitude = jnp.abs(values)
     return temperature * jax.nn.logsumexp(magnitude / temperature)
+
+
+def shaking_peaks(robot: Robot, trajectory, times, reference=None, gravity=None):
+    """Peak shaking force and moment of ``robot`` along ``trajectory``, the moment taken
+    about any ``reference`` point (e.g. Geng et al. 2021, Tables 1-4).
+
+    Args:
+        robot: the robot *as executed* (true masses and payload); the trajectory may
+            have been planned with another one (e.g. a payload error).
+        trajectory: callable ``t -> q``, e.g. :class:`jaxbal.planning.ComLine`.
+        times: ``(t,)`` sampling instants [s].
+        reference: ``(3,)`` point about which the moment is taken [m] (default: the
+            base origin).
+        gravity: optional ``(3,)`` gravity [m/s²] (default none).
+
+    Returns:
+        ``(max_t |F_sh| [N], max_t |M_sh| [N·m])``, differentiable (zero-safe norms).
+        The moment about ``c`` is ``M_O − c × F``.
+    """
+    force, moment = wrench_along(robot, trajectory, times, gravity)
+    if reference is not None:
+        moment = moment - jnp.cross(jnp.asarray(reference, dtype=float), force)
+    return peak_norm(force), peak_norm(moment)

@@ -53,7 +53,7 @@ import jax.numpy as jnp
 
 from jaxbal.implicit import newton_solve
 from jaxbal.momentum import center_of_mass
-from jaxbal.planning import EndEffectorLine, com_line, peak_norm, wrench_along
+from jaxbal.planning import EndEffectorLine, com_line, shaking_peaks  # noqa: F401 (re-exported)
 from jaxbal.profiles import BangBang, Quintic
 from jaxbal.robot import Bodies, Robot, concatenate, point_masses
 from jaxbal.trajectory import StraightLine
@@ -365,25 +365,3 @@ def switching_times(duration, count: int = 401) -> Float[Array, " t"]:
     duration = jnp.asarray(duration, dtype=float)
     grid = jnp.linspace(0.0, 1.0, count)
     return jnp.concatenate([grid, jnp.array([0.5 - 1e-9])]) * duration
-
-
-def shaking_peaks(robot: Robot, trajectory, times, reference=None, gravity=None):
-    """Peak shaking force and moment of ``robot`` along ``trajectory`` (Tables 1-4).
-
-    Args:
-        robot: the robot *as executed* (true masses and payload); the trajectory may
-            have been planned with another one (case 4 of §3.3).
-        trajectory: callable ``t -> q``, e.g. :class:`jaxbal.planning.ComLine`.
-        times: ``(t,)`` sampling instants [s] (see :func:`switching_times`).
-        reference: ``(3,)`` point about which the moment is taken [m] (default: the
-            base origin, the intersection of the prismatic axes).
-        gravity: optional ``(3,)`` gravity [m/s²] (default none, which reproduces Table 1).
-
-    Returns:
-        ``(max_t |F_sh| [N], max_t |M_sh| [N·m])``, differentiable (zero-safe norms).
-        The moment about ``c`` is ``M_O − c × F``.
-    """
-    force, moment = wrench_along(robot, trajectory, times, gravity)
-    if reference is not None:
-        moment = moment - jnp.cross(jnp.asarray(reference, dtype=float), force)
-    return peak_norm(force), peak_norm(moment)
