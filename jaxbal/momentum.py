@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxbal._linalg import cross, matmul_transposed, matvec, rmatvec, vee, weighted_sum
+from jaxbal.planar import PlanarRobot, planar_inertial_wrench
 from jaxbal.robot import Robot
 from jaxbal.types import Coordinates, Points, Rotations, Scalar, Vec3
 
@@ -80,6 +81,13 @@ def momentum(robot: Robot, q: Coordinates, qd: Coordinates) -> tuple[Vec3, Vec3]
     return linear, orbital + jnp.sum(spin, axis=0)
 
 
+def inertial_wrench(robot: Robot, q: Coordinates, qd: Coordinates, qdd: Coordinates):
+    """``(−dp/dt, −dL/dt)`` of any robot, by forward-mode differentiation of
+    :func:`momentum` (the general 3-D evaluation behind :func:`shaking_wrench`)."""
+    _, (dp, dl) = jax.jvp(lambda q_, qd_: momentum(robot, q_, qd_), (q, qd), (qd, qdd))
+    return -dp, -dl
+
+
 def shaking_wrench(
     robot: Robot,
     q: Coordinates,
@@ -96,7 +104,10 @@ def shaking_wrench(
 
     where ``p`` and ``L`` are from :func:`momentum`. With the default ``gravity=None``
     only the inertial (dynamic) part is returned, as in the papers; e.g. f_sh =
-    -m_tot·ẍ_S. Planar robots give ``f[2] = 0`` and a moment along z.
+    -m_tot·ẍ_S. Planar robots give ``f[2] = 0`` and a moment along z; for a
+    :class:`~jaxbal.planar.PlanarRobot` the same quantity is evaluated with scalar
+    planar kinematics (:func:`~jaxbal.planar.planar_inertial_wrench`), otherwise by
+    :func:`inertial_wrench`.
 
     Args:
         robot: any :class:`~jaxbal.robot.Robot`.
@@ -112,8 +123,10 @@ def shaking_wrench(
         Briot et al. (2012), eq (1); van der Wijk et al. (2013), section 2.
     """
     q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
-    _, (dp, dl) = jax.jvp(lambda q_, qd_: momentum(robot, q_, qd_), (q, qd), (qd, qdd))
-    force, moment = -dp, -dl
+    if isinstance(robot, PlanarRobot):
+        force, moment = planar_inertial_wrench(robot, q, qd, qdd)
+    else:
+        force, moment = inertial_wrench(robot, q, qd, qdd)
     if gravity is not None:
         g = jnp.asarray(gravity, dtype=float)
         bodies = robot.mass_properties()

@@ -32,14 +32,8 @@ from __future__ import annotations
 import jax.numpy as jnp
 
 from jaxbal._linalg import cos_sin
-from jaxbal.robot import (
-    Bodies,
-    Robot,
-    concatenate,
-    planar_inertia,
-    point_masses,
-    rot_z_from,
-)
+from jaxbal.planar import PlanarRobot
+from jaxbal.robot import Bodies, concatenate, planar_inertia, point_masses
 from jaxbal.types import Array, Float
 from jaxbal.validation import check_nonnegative, check_shape, raise_if_invalid
 
@@ -61,7 +55,7 @@ def _partial_sums(values):
     return jnp.stack(sums)
 
 
-class PlanarArm(Robot):
+class PlanarArm(PlanarRobot):
     """A planar serial arm of ``n`` revolute links with a point payload at the tip.
 
     Attributes:
@@ -121,7 +115,7 @@ class PlanarArm(Robot):
     def dof(self) -> int:
         return self.n_links
 
-    # --- the two methods every robot provides --------------------------------------
+    # --- what every (planar) robot provides ------------------------------------------
 
     def mass_properties(self) -> Bodies:
         n = self.n_links
@@ -139,14 +133,13 @@ class PlanarArm(Robot):
         )
         return concatenate(links, counter, point_masses(self.payload[None], ("payload",)))
 
-    def body_frames(self, q):
+    def planar_frames(self, q):
         check_shape("q", q, (self.n_links,))
-        cos, sin = cos_sin(_partial_sums(q))  # one sine and cosine per link
-        joints = self._joints(cos, sin)
-        origins2d = jnp.concatenate([joints[:-1], joints[:-1], joints[-1:]], axis=0)
-        origins = jnp.concatenate([origins2d, jnp.zeros((origins2d.shape[0], 1))], axis=-1)
-        rotations = rot_z_from(*(jnp.concatenate([v, v, v[-1:]]) for v in (cos, sin)))
-        return origins, rotations
+        theta = _partial_sums(q)
+        joints = self._joints(*cos_sin(theta))  # one sine and cosine per link
+        origins = jnp.concatenate([joints[:-1], joints[:-1], joints[-1:]], axis=0)
+        angles = jnp.concatenate([theta, theta, theta[-1:]])
+        return origins, angles
 
     # --- kinematics ----------------------------------------------------------------
 
