@@ -58,7 +58,8 @@ from __future__ import annotations
 import equinox as eqx
 import jax.numpy as jnp
 
-from jaxbal.robot import Bodies, Robot, planar_inertia, rot_z
+from jaxbal.planar import PlanarRobot
+from jaxbal.robot import Bodies, planar_inertia
 from jaxbal.types import Array, Float
 from jaxbal.validation import check_nonnegative, check_shape, raise_if_invalid
 
@@ -84,7 +85,7 @@ def _per_arm(value):
     return jnp.broadcast_to(jnp.asarray(value, dtype=float), (4,))
 
 
-class DualV(Robot):
+class DualV(PlanarRobot):
     """The DUAL-V robot: geometry and mass parameters as differentiable leaves.
 
     Attributes:
@@ -226,16 +227,16 @@ class DualV(Robot):
         )
         return Bodies(mass=mass, com=com, inertia=planar_inertia(izz), names=names)
 
-    def body_frames(self, q):
-        """Frames of the 22 bodies for the 11 coordinates ``q`` (see the module doc)."""
+    def planar_frames(self, q):
+        """Plane origins ``(22, 2)`` and angles ``(22,)`` of the 22 bodies for the 11
+        coordinates ``q`` (see the module doc); ``body_frames`` follows from them."""
         q = jnp.asarray(q, dtype=float)
         check_shape("q", q, (N_COORDINATES,))
         base, elbows, _ = self.joint_positions(q)
         centre = q[8:10][None]
-        origins2d = jnp.concatenate([base, elbows, centre, centre, base, base, base])
-        origins = jnp.concatenate([origins2d, jnp.zeros((22, 1))], -1)
+        origins = jnp.concatenate([base, elbows, centre, centre, base, base, base])
         angles = jnp.concatenate([q[0:4], q[4:8], q[10:11], q[10:11], q[0:4], q[0:4], q[0:4]])
-        return origins, rot_z(angles)
+        return origins, angles
 
     # --- kinematics -----------------------------------------------------------------
 
