@@ -31,7 +31,7 @@ import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
 import jaxbal  # noqa: E402
-from jaxbal.mjx import mujoco_model  # noqa: E402
+from jaxbal.mujoco import mujoco_model  # noqa: E402
 from jaxbal.planning import EndEffectorLine, peak_norm, wrench_along  # noqa: E402
 from jaxbal.profiles import Quintic  # noqa: E402
 from jaxbal.report import atomic_write_text  # noqa: E402

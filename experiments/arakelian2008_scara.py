@@ -18,12 +18,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import jaxbal  # noqa: E402
-from jaxbal.mjx import confirm, mujoco_base_reaction  # noqa: E402
+from jaxbal.mujoco import confirm, mujoco_base_reaction  # noqa: E402
 from jaxbal.planning import peak_norm  # noqa: E402
 from jaxbal.planning import wrench_along as _wrench_along  # noqa: E402
 from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
 from jaxbal.robots import scara_balancing as sb  # noqa: E402
-from jaxbal.robots.scara import PickAndPlace, Scara, joint_trajectory, scara  # noqa: E402
+from jaxbal.robots import PickAndPlace, Scara, joint_trajectory, scara  # noqa: E402
 
 DEG = np.pi / 180
 DURATION = 0.3  # s

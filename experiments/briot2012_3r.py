@@ -23,8 +23,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import jaxbal  # noqa: E402
-from jaxbal.mjx import confirm_path  # noqa: E402
-from jaxbal.optimize import minimize  # noqa: E402
+from jaxbal.mujoco import confirm_path  # noqa: E402
+from jaxbal import minimize  # noqa: E402
 from jaxbal.planning import (  # noqa: E402
     ComLine,
     EndEffectorLine,
@@ -33,9 +33,9 @@ from jaxbal.planning import (  # noqa: E402
     wrench_along,
 )
 from jaxbal.profiles import BangBang, BoundaryPolynomial, Quintic  # noqa: E402
-from jaxbal.rate_limit import plan_rate_limited  # noqa: E402
+from jaxbal.planning import plan_rate_limited  # noqa: E402
 from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
-from jaxbal.square_paths import BRIOT2012_PATHS, path_name, square_points  # noqa: E402
+from jaxbal.robots.planar_arm import BRIOT2012_PATHS, path_name, square_points  # noqa: E402
 
 DURATION = 0.5  # s
 RATE_LIMIT = 3.0e4  # N·m/s

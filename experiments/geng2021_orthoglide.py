@@ -17,14 +17,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import jaxbal  # noqa: E402
-from jaxbal.mjx import confirm  # noqa: E402
+from jaxbal.mujoco import confirm  # noqa: E402
 from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
-from jaxbal.robots.orthoglide import (  # noqa: E402
-    motion_cases,
-    orthoglide,
-    shaking_peaks,
-    switching_times,
-)
+from jaxbal.planning import shaking_peaks  # noqa: E402
+from jaxbal.robots import orthoglide  # noqa: E402
+from jaxbal.robots.orthoglide_planning import motion_cases, switching_times  # noqa: E402
 
 P_START = (0.0, 0.0, 0.0)  # m, §3
 P_END = (-0.1, 0.07, -0.11)  # m, §3

@@ -20,10 +20,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import jaxbal  # noqa: E402
-from jaxbal.mjx_simulate import simulate_open_loop  # noqa: E402
+from jaxbal.mujoco import simulate_open_loop  # noqa: E402
 from jaxbal.profiles import Quintic  # noqa: E402
 from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
-from jaxbal.robots.dual_v import dual_v  # noqa: E402
+from jaxbal.robots import dual_v  # noqa: E402
 from jaxbal.robots.dual_v_dynamics import paper_torques, virtual_work_torques  # noqa: E402
 
 START = jnp.array([-0.1, -0.175, 0.0])  # m, m, rad

@@ -28,11 +28,11 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import jaxbal  # noqa: E402
-from jaxbal.mjx import confirm  # noqa: E402
-from jaxbal.optimize import minimize  # noqa: E402
+from jaxbal.mujoco import confirm  # noqa: E402
+from jaxbal import minimize  # noqa: E402
 from jaxbal.profiles import Quintic  # noqa: E402
 from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
-from jaxbal.robots.dual_v import CROSSED, OUTWARD, dual_v  # noqa: E402
+from jaxbal.robots import CROSSED, OUTWARD, dual_v  # noqa: E402
 from jaxbal.robots.dual_v_balancing import (  # noqa: E402
     BALANCE_NULL_DIRECTION,
     balance_condition_eq1,

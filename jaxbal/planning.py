@@ -1,180 +1,30 @@
-"""Centre-of-mass (COM) motion planning and evaluation along planned motions.
+"""Motion on every robot: COM and end-effector straight lines, evaluation along a
+motion (shaking wrench, torques, peaks) and the torque-rate-limited planner."""
 
-The shaking force of any robot is ``f_sh = −m_tot ẍ_S`` (Briot et al. 2012, eq 1), so
-it is smallest when the total COM ``x_S`` moves on the straight line between its
-start and end positions with the profile of least peak acceleration -- bang-bang for a
-fixed duration (eqs 3-4), or a trapezoidal acceleration when the actuators' torque
-rates are bounded (eqs 5-6). The joint motion then follows from the robot's COM
-inverse kinematics; for redundant cases (3R) the free coordinates follow their own
-law (eqs 19-20).
+from jaxbal._src.planning import (
+    ComLine,
+    EndEffectorLine,
+    com_line,
+    peak_norm,
+    shaking_peaks,
+    smooth_peak,
+    torque_rate_along,
+    torques_along,
+    wrench_along,
+)
+from jaxbal._src.rate_limit import RateLimitedPlan, peak_torque_rate, plan_rate_limited
 
-Every trajectory here is an :class:`equinox.Module` mapping time ``t`` [s] to the
-robot's coordinates ``q``; feed it to :func:`jaxbal.trajectory.sample` for exact
-``q, q̇, q̈, q⃛``. A robot takes part by providing ``inverse_kinematics(pose, mode)``
-and ``com_inverse_kinematics(com, free, mode)``.
-
-References:
-    Briot, Arakelian & Le Baron (2012), sections 2.1-2.3.
-"""
-
-from __future__ import annotations
-
-from collections.abc import Callable
-
-import equinox as eqx
-import jax
-import jax.numpy as jnp
-
-from jaxbal.dynamics import inverse_dynamics, inverse_dynamics_rate
-from jaxbal.momentum import center_of_mass, shaking_wrench
-from jaxbal.profiles import Profile
-from jaxbal.robot import Robot
-from jaxbal.trajectory import StraightLine, sample
-from jaxbal.types import Array, Float, ScalarLike
-
-
-class EndEffectorLine(eqx.Module):
-    """Joint motion that moves the end-effector on a straight line (classical planning).
-
-    ``q(t) = IK(x_E0 + s(t/T)(x_Ef − x_E0))``. For the 3R the pose includes φ, so the
-    orientation follows the same profile (case 1 of Briot et al. 2012).
-    """
-
-    robot: Robot
-    line: StraightLine
-    mode: int = eqx.field(static=True, default=1)
-
-    def __call__(self, t: ScalarLike):
-        return self.robot.inverse_kinematics(self.line(t), self.mode)
-
-
-class ComLine(eqx.Module):
-    """Joint motion that moves the total COM on a straight line with a given profile.
-
-    Attributes:
-        robot: the robot (its parameters are leaves: the plan follows them).
-        line: the COM path, a :class:`~jaxbal.trajectory.StraightLine` in the plane
-            (``(2,)`` endpoints) or in space (``(3,)``).
-        free: ``None``, or a callable ``t ↦`` free coordinates (φ for the 3R).
-        mode: working mode of the COM inverse kinematics (``+1`` = "+" of eq 10).
-    """
-
-    robot: Robot
-    line: StraightLine
-    free: Callable | None = None
-    mode: int = eqx.field(static=True, default=1)
-
-    def __call__(self, t: ScalarLike):
-        free = None if self.free is None else self.free(t)
-        return self.robot.com_inverse_kinematics(self.line(t), free, self.mode)
-
-    def valid(self, times: Float[Array, " t"]) -> Float[Array, " t"]:
-        """Boolean mask: is the COM target reachable at each time (no exception)."""
-
-        def one(t):
-            free = None if self.free is None else self.free(t)
-            _, ok = self.robot.com_inverse_kinematics(
-                self.line(t), free, self.mode, return_valid=True
-            )
-            return ok
-
-        return jax.vmap(one)(jnp.asarray(times, dtype=float))
-
-
-def com_line(
-    robot: Robot,
-    q_start,
-    q_end,
-    profile: Profile,
-    duration: ScalarLike,
-    free: Callable | None = None,
-    mode: int = 1,
-    dims: int = 2,
-) -> ComLine:
-    """The COM plan between two configurations (eq 3): the COM goes straight from
-    ``x_S(q_start)`` to ``x_S(q_end)`` with ``profile`` in ``duration`` seconds.
-
-    ``dims = 2`` for planar robots, 3 for spatial ones.
-    """
-    start = center_of_mass(robot, jnp.asarray(q_start, dtype=float))[:dims]
-    end = center_of_mass(robot, jnp.asarray(q_end, dtype=float))[:dims]
-    return ComLine(robot, StraightLine(start, end, profile, duration), free, mode)
-
-
-@eqx.filter_jit
-def wrench_along(
-    robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
-) -> tuple[Float[Array, "t 3"], Float[Array, "t 3"]]:
-    """Shaking force ``(t, 3)`` [N] and moment ``(t, 3)`` [N·m] along a trajectory.
-
-    Compiled (``eqx.filter_jit``): a boundary function. It recompiles only when the
-    structure of ``robot``/``path`` changes (a new Python callable inside ``path``
-    counts as a new structure), not for new parameter values.
-    """
-    q, qd, qdd = sample(path, times, order=2)
-    return jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c, gravity))(q, qd, qdd)
-
-
-@eqx.filter_jit
-def torques_along(
-    robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
-) -> Float[Array, "t dof"]:
-    """Actuator torques ``τ`` ``(t, dof)`` [N·m] along a trajectory (serial arms)."""
-    q, qd, qdd = sample(path, times, order=2)
-    return jax.vmap(lambda a, b, c: inverse_dynamics(robot, a, b, c, gravity))(q, qd, qdd)
-
-
-@eqx.filter_jit
-def torque_rate_along(
-    robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
-) -> Float[Array, "t dof"]:
-    """Actuator torque rates ``dτ/dt`` ``(t, dof)`` [N·m/s] along a trajectory (serial arms)."""
-    q, qd, qdd, qddd = sample(path, times, order=3)
-    return jax.vmap(lambda a, b, c, d: inverse_dynamics_rate(robot, a, b, c, d, gravity))(
-        q, qd, qdd, qddd
-    )
-
-
-def peak_norm(vectors: Float[Array, "t 3"]) -> Float[Array, ""]:
-    """``max_t ‖v(t)‖`` (e.g. the maximal shaking force of the papers' tables).
-
-    Differentiable everywhere: the norm uses the double-``where`` trick so that an
-    instant with ``v = 0`` (rest at the ends of a move) gives a zero, not NaN, gradient.
-    """
-    squared = jnp.sum(vectors**2, axis=-1)
-    positive = squared > 0.0
-    norms = jnp.where(positive, jnp.sqrt(jnp.where(positive, squared, 1.0)), 0.0)
-    return jnp.max(norms)
-
-
-def smooth_peak(values: Float[Array, " t"], temperature: ScalarLike) -> Float[Array, ""]:
-    """Differentiable upper bound of ``max|values|``: ``τ·logsumexp(|v|/τ)``.
-
-    Tends to the maximum as ``temperature τ → 0`` (error ≤ τ·log t); used to optimise
-    trajectory parameters against a peak (e.g. eq 19 of Briot et al. 2012).
-    """
-    magnitude = jnp.abs(values)
-    return temperature * jax.nn.logsumexp(magnitude / temperature)
-
-
-def shaking_peaks(robot: Robot, trajectory, times, reference=None, gravity=None):
-    """Peak shaking force and moment of ``robot`` along ``trajectory``, the moment taken
-    about any ``reference`` point (e.g. Geng et al. 2021, Tables 1-4).
-
-    Args:
-        robot: the robot *as executed* (true masses and payload); the trajectory may
-            have been planned with another one (e.g. a payload error).
-        trajectory: callable ``t -> q``, e.g. :class:`jaxbal.planning.ComLine`.
-        times: ``(t,)`` sampling instants [s].
-        reference: ``(3,)`` point about which the moment is taken [m] (default: the
-            base origin).
-        gravity: optional ``(3,)`` gravity [m/s²] (default none).
-
-    Returns:
-        ``(max_t |F_sh| [N], max_t |M_sh| [N·m])``, differentiable (zero-safe norms).
-        The moment about ``c`` is ``M_O − c × F``.
-    """
-    force, moment = wrench_along(robot, trajectory, times, gravity)
-    if reference is not None:
-        moment = moment - jnp.cross(jnp.asarray(reference, dtype=float), force)
-    return peak_norm(force), peak_norm(moment)
+__all__ = [
+    "ComLine",
+    "EndEffectorLine",
+    "RateLimitedPlan",
+    "com_line",
+    "peak_norm",
+    "peak_torque_rate",
+    "plan_rate_limited",
+    "shaking_peaks",
+    "smooth_peak",
+    "torque_rate_along",
+    "torques_along",
+    "wrench_along",
+]

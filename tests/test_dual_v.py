@@ -8,7 +8,7 @@ import pytest
 from jax.test_util import check_grads
 
 import jaxbal
-from jaxbal.robots.dual_v import CROSSED, OUTWARD, dual_v
+from jaxbal.robots import CROSSED, OUTWARD, dual_v
 from jaxbal.robots.dual_v_dynamics import (
     base_wrench_from_bearings,
     bearing_forces,
@@ -258,7 +258,7 @@ def _triangle(samples):
 def test_codesign_recovers_eq1():
     """L-BFGS co-design with zero inertia penalty recovers eq (1) to 1e-6 (symmetric
     start); with a penalty p_cm → radius of gyration sqrt(I_cm/m_cm) (closed form)."""
-    from jaxbal.optimize import minimize
+    from jaxbal import minimize
     from jaxbal.robots.dual_v_balancing import (
         balance_condition_eq1,
         codesign_loss,

@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 import jaxbal
-from jaxbal.mjcf import export_mjcf, robot_tree, to_mjcf
-from jaxbal.mjx import (
+from jaxbal.mujoco import export_mjcf, robot_tree, to_mjcf
+from jaxbal.mujoco import (
     confirm,
     mjx_base_reaction,
     mjx_model,
@@ -25,12 +25,12 @@ from jaxbal.mjx import (
     mujoco_inverse,
     mujoco_model,
 )
-from jaxbal.mjx_simulate import mujoco_actuator_efforts, simulate_open_loop
-from jaxbal.mjx_trees import prescribed_tree
-from jaxbal.robots.dual_v import dual_v
-from jaxbal.robots.orthoglide import orthoglide
+from jaxbal.mujoco import mujoco_actuator_efforts, simulate_open_loop
+from jaxbal.mujoco import prescribed_tree
+from jaxbal.robots import dual_v
+from jaxbal.robots.orthoglide_planning import orthoglide
 from jaxbal.robots.planar_arm import PlanarArm, planar_2r, planar_3r
-from jaxbal.robots.scara import Scara
+from jaxbal.robots import Scara
 
 GRAVITY = np.array([0.3, -1.0, -9.81])
 TOL = 1e-9

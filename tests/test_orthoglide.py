@@ -8,11 +8,12 @@ import pytest
 from jax.test_util import check_grads
 
 import jaxbal
-from jaxbal.implicit import newton_solve
+from jaxbal import newton_solve
 from jaxbal.planning import ComLine, EndEffectorLine
 from jaxbal.profiles import BangBang, Quintic
 from jaxbal.robots import orthoglide
-from jaxbal.robots.orthoglide import motion_cases, shaking_peaks, switching_times
+from jaxbal.planning import shaking_peaks
+from jaxbal.robots.orthoglide_planning import motion_cases, switching_times
 
 P_START = jnp.zeros(3)
 P_END = jnp.array([-0.1, 0.07, -0.11])  # §3

@@ -10,9 +10,9 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxbal
-from jaxbal.momentum import inertial_wrench
-from jaxbal.planar import PlanarRobot, planar_inertial_wrench
-from jaxbal.robot import Bodies
+from jaxbal._src.momentum import inertial_wrench
+from jaxbal._src.planar import PlanarRobot, planar_inertial_wrench
+from jaxbal._src.robot import Bodies
 
 
 class Swinger(PlanarRobot):

@@ -6,9 +6,9 @@ import csv
 import pytest
 from typer.testing import CliRunner
 
-from jaxbal.cli import app
-from jaxbal.report import CSV_COLUMNS, Table, atomic_write_text
-from jaxbal.reproduce import discover, run_all
+from jaxbal._src.cli import app
+from jaxbal._src.report import CSV_COLUMNS, Table, atomic_write_text
+from jaxbal._src.reproduce import discover, run_all
 
 
 def test_table_csv_columns_and_empty_paper():

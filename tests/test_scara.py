@@ -11,7 +11,7 @@ from jax.test_util import check_grads
 import jaxbal
 from jaxbal.planning import wrench_along as _wrench_along
 from jaxbal.robots import scara_balancing as sb
-from jaxbal.robots.scara import PickAndPlace, Scara, joint_trajectory, scara
+from jaxbal.robots import PickAndPlace, Scara, joint_trajectory, scara
 
 wrench_along = eqx.filter_jit(_wrench_along)
 DEG = np.pi / 180
@@ -242,7 +242,7 @@ def test_invalid_parameters_raise():
 def test_mujoco_confirms_wrench_and_reactionless_motion(unbalanced_wrench):
     # Reference: MuJoCo C inverse dynamics on a tree built from the lengths
     # (jaxbal.mjx_trees.scara_tree), 1e-9 relative; gravity included.
-    from jaxbal.mjx import mujoco_base_reaction
+    from jaxbal.mujoco import mujoco_base_reaction
 
     robot = sb.force_balanced(general_scara())
     robot = sb.with_counter_mass_design(robot, 1.1 * sb.counter_mass_design(robot))

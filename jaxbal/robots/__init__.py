@@ -1,8 +1,34 @@
-"""The robots of the four papers, each in its own module."""
+"""Robots: the nominal robots of the four papers and their classes.
 
-from jaxbal.robots.dual_v import *  # noqa: F403
-from jaxbal.robots.orthoglide import *  # noqa: F403
-from jaxbal.robots.planar_arm import PlanarArm, planar_2r, planar_3r
-from jaxbal.robots.scara import *  # noqa: F403
+Every robot satisfies the contract of :class:`jaxbal.Robot`. Robot-specific tools
+(closed-form balancing, paper models) live in the submodules
+:mod:`jaxbal.robots.planar_arm`, :mod:`jaxbal.robots.scara_balancing`,
+:mod:`jaxbal.robots.dual_v_balancing`, :mod:`jaxbal.robots.dual_v_dynamics`,
+:mod:`jaxbal.robots.dual_v_plots` and :mod:`jaxbal.robots.orthoglide_planning`.
+"""
 
-__all__ = ["PlanarArm", "planar_2r", "planar_3r", "scara", "dual_v", "orthoglide"]  # noqa: F405
+from jaxbal._src.robots import ALIASES, ROBOTS, by_name
+from jaxbal._src.robots.dual_v import CROSSED, OUTWARD, DualV, dual_v
+from jaxbal._src.robots.orthoglide import Orthoglide, orthoglide
+from jaxbal._src.robots.planar_arm import PlanarArm, planar_2r, planar_3r
+from jaxbal._src.robots.scara import PickAndPlace, Scara, ScaraTrajectory, joint_trajectory, scara
+
+__all__ = [
+    "ALIASES",
+    "CROSSED",
+    "OUTWARD",
+    "ROBOTS",
+    "DualV",
+    "Orthoglide",
+    "PickAndPlace",
+    "PlanarArm",
+    "Scara",
+    "ScaraTrajectory",
+    "by_name",
+    "dual_v",
+    "joint_trajectory",
+    "orthoglide",
+    "planar_2r",
+    "planar_3r",
+    "scara",
+]

@@ -20,10 +20,10 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from jaxbal._linalg import cross, matmul_transposed, matvec, rmatvec, vee, weighted_sum
-from jaxbal.planar import PlanarRobot, planar_inertial_wrench
-from jaxbal.robot import Robot
-from jaxbal.types import Coordinates, Points, Rotations, Scalar, Vec3
+from jaxbal._src.linalg import cross, matmul_transposed, matvec, rmatvec, vee, weighted_sum
+from jaxbal._src.planar import PlanarRobot, planar_inertial_wrench
+from jaxbal._src.robot import Robot
+from jaxbal._src.types import Coordinates, Points, Rotations, Scalar, Vec3
 
 
 def total_mass(robot: Robot) -> Scalar:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
-from jaxbal.report import Context, Experiment, atomic_write_text, render_report, render_summary
+from jaxbal._src.report import Context, Experiment, atomic_write_text, render_report, render_summary
 
 README_START = "<!-- results:start -->"
 README_END = "<!-- results:end -->"

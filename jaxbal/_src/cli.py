@@ -20,7 +20,7 @@ def reproduce(
     ),
 ):
     """Reproduce the papers' tables and figures into OUT (CSV, PNG, REPORT.md)."""
-    from jaxbal.reproduce import run_all
+    from jaxbal._src.reproduce import run_all
 
     results = run_all(out, only=only, update_readme=readme)
     typer.echo(f"{len(results)} experiment(s) written to {out}/ (see {out}/REPORT.md)")
@@ -29,7 +29,7 @@ def reproduce(
 @app.command("list")
 def list_experiments():
     """List the experiments that ``reproduce`` runs."""
-    from jaxbal.reproduce import discover
+    from jaxbal._src.reproduce import discover
 
     for experiment in discover():
         typer.echo(f"{experiment.name:28s} {experiment.title}")
@@ -37,7 +37,9 @@ def list_experiments():
 
 @app.command("export-mjcf")
 def export_mjcf(
-    robot: str = typer.Argument(..., help="2r, 3r, scara, dual-v or orthoglide"),
+    robot: str = typer.Argument(
+        ..., help="planar_2r, planar_3r, scara, dual_v or orthoglide (aliases: 2r, 3r, dual-v)"
+    ),
     gravity: bool = typer.Option(False, help="include gravity (0, 0, -9.81) m/s²"),
     base_joints: bool = typer.Option(False, help="mount the robot on the 6 base dofs"),
 ):
@@ -45,7 +47,7 @@ def export_mjcf(
 
     View it with ``python -m mujoco.viewer --mjcf robot.xml``.
     """
-    from jaxbal.mjcf import export_mjcf as to_xml
+    from jaxbal._src.mujoco.mjcf import export_mjcf as to_xml
 
     try:
         xml = to_xml(robot, gravity=(0.0, 0.0, -9.81) if gravity else None, base_joints=base_joints)

@@ -1,13 +1,8 @@
 """MuJoCo models (MJCF) generated from jaxbal robots, for an independent check.
 
-A jaxbal :class:`~jaxbal.robot.Robot` knows its bodies' mass properties and their
-poses, not its joints. To let MuJoCo compute the dynamics *independently*, a robot's
-kinematic topology is described once by a :class:`Tree`: MuJoCo bodies, each the
-frame of one jaxbal body (so the mass, COM and inertia from
-:meth:`~jaxbal.robot.Robot.mass_properties` apply unchanged), joined by hinge/slide
-joints, plus ``connect`` equality constraints that close kinematic loops. Builders
-are registered per robot class with :func:`robot_tree` (``functools.singledispatch``;
-see :mod:`jaxbal.mjx_trees`).
+The kinematic description comes from the robot itself,
+:meth:`~jaxbal.Robot.mujoco_tree` (see :mod:`jaxbal._src.mujoco.tree`); nothing here is
+robot-specific.
 
 Every generated model carries the whole robot under one ``base`` body moved by three
 slide joints (x, y, z) and three hinge joints (about x, y, z) through the base origin,
@@ -25,11 +20,6 @@ unaffected, exactly. The ``base`` body needs a mass to hold joints; it is
 :data:`BASE_MASS`, never accelerated (its dofs are held at zero), and its weight is
 subtracted when gravity is on.
 
-:func:`jaxbal.mjx_trees.prescribed_tree` is a generic fallback for any robot: every
-jaxbal body hangs from the base on 3 slides and a ball joint whose motion is
-*prescribed* from ``robot.body_frames``. It checks the mass properties and the momentum bookkeeping
-(Newton-Euler), not the kinematics, so it is less independent than a registered tree.
-
 References:
     MuJoCo XML reference, https://mujoco.readthedocs.io/en/stable/XMLreference.html
     (``inertial``, ``joint``, ``equality/connect``).
@@ -37,16 +27,15 @@ References:
 
 from __future__ import annotations
 
-import functools
 import xml.etree.ElementTree as ET
-from collections.abc import Callable
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal.robot import Robot
+from jaxbal._src.mujoco.tree import Tree, matrix_to_quat
+from jaxbal._src.robot import Robot
 
 #: Mass [kg] and isotropic inertia [kg·m²] of the (never accelerated) base body and of
 #: helper bodies that are not jaxbal bodies (MuJoCo needs mass on bodies with joints).
@@ -59,193 +48,6 @@ _BASE_TYPES = ("slide",) * 3 + ("hinge",) * 3
 #: in forward simulation (inverse dynamics of consistent states gives no constraint
 #: force on the base); see :mod:`jaxbal.mjx_simulate`.
 CONNECT = {"solref": "0.002 1", "solimp": "0.99 0.9999 0.001 0.5 2"}
-
-
-class Joint(NamedTuple):
-    """A 1-dof joint of a :class:`TreeBody`.
-
-    Attributes:
-        name: unique joint name.
-        type: ``"hinge"`` or ``"slide"``.
-        axis: ``(3,)`` joint axis in the body frame.
-        pos: ``(3,)`` anchor in the body frame [m] (hinges).
-    """
-
-    name: str
-    type: str
-    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
-    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
-
-
-class TreeBody(NamedTuple):
-    """One MuJoCo body, whose frame is the frame of a jaxbal body.
-
-    Attributes:
-        name: the jaxbal body name (from ``mass_properties().names``); the mass,
-            COM and inertia of that body are used. A name that is not a jaxbal body
-            gives a massless helper body (only allowed without joints).
-        parent: parent body name, ``None`` for the base.
-        pos: ``(3,)`` frame origin in the parent frame at ``qpos = 0`` [m].
-        rotation: ``(3, 3)`` frame orientation in the parent frame at ``qpos = 0``.
-        joints: the joints moving this body relative to its parent.
-        visual_to: optional ``(3,)`` end of a visual capsule from the frame origin [m].
-    """
-
-    name: str
-    parent: str | None
-    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    rotation: tuple = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-    joints: tuple[Joint, ...] = ()
-    visual_to: tuple[float, float, float] | None = None
-
-
-class Connect(NamedTuple):
-    """A ``connect`` equality (spherical joint) closing a kinematic loop.
-
-    Written with two sites (``site1``/``site2``), so the joint centre is given on both
-    bodies and does not depend on MuJoCo's reference configuration ``qpos0``.
-
-    Attributes:
-        body1, anchor1: first body and the joint centre in its frame ``(3,)`` [m].
-        body2, anchor2: second body and the joint centre in its frame ``(3,)`` [m].
-    """
-
-    body1: str
-    anchor1: tuple[float, float, float]
-    body2: str
-    anchor2: tuple[float, float, float]
-
-
-class Tree(NamedTuple):
-    """Kinematic description of a robot for MuJoCo.
-
-    Attributes:
-        bodies: parents before children.
-        coordinates: ``q (dof,) -> qpos (nq_robot,)`` of the tree joints in the order
-            they appear in ``bodies``; any smooth JAX function (velocities and
-            accelerations follow by forward-mode differentiation).
-        connects: loop-closure constraints.
-        actuated: names of the actuated joints (motors in the MJCF), if known.
-        independent: False for :func:`prescribed_tree`.
-        state: optional ``(q, qd, qdd) -> (qpos, qvel, qacc)`` overriding the default
-            (derivatives of ``coordinates``), see :func:`tree_state`.
-    """
-
-    bodies: tuple[TreeBody, ...]
-    coordinates: Callable
-    connects: tuple[Connect, ...] = ()
-    actuated: tuple[str, ...] = ()
-    independent: bool = True
-    state: Callable | None = None
-
-    def joint_names(self) -> tuple[str, ...]:
-        return tuple(j.name for b in self.bodies for j in b.joints)
-
-
-@functools.singledispatch
-def _tree_builder(robot: Robot) -> Tree:
-    raise NotImplementedError(
-        f"no MuJoCo tree is registered for {type(robot).__name__}; register one with "
-        "jaxbal.mjcf.register_tree or use jaxbal.mjx_trees.prescribed_tree(robot)"
-    )
-
-
-def register_tree(cls):
-    """Decorator registering a ``builder(robot) -> Tree`` for robot class ``cls``."""
-    return _tree_builder.register(cls)
-
-
-def robot_tree(robot: Robot, fallback: bool = False) -> Tree:
-    """The registered :class:`Tree` of ``robot`` (or :func:`prescribed_tree` if
-    ``fallback`` and none is registered)."""
-    import jaxbal.mjx_trees  # noqa: F401  (registers the builders)
-
-    try:
-        return _tree_builder(robot)
-    except NotImplementedError:
-        if fallback:
-            from jaxbal.mjx_trees import prescribed_tree
-
-            return prescribed_tree(robot)
-        raise
-
-
-def has_tree(robot: Robot) -> bool:
-    """True when a kinematic tree builder is registered for ``robot``'s class."""
-    import jaxbal.mjx_trees  # noqa: F401
-
-    return _tree_builder.dispatch(type(robot)) is not _tree_builder.dispatch(object)
-
-
-def _quat_mul(a, b):
-    w1, v1 = a[0], a[1:]
-    w2, v2 = b[0], b[1:]
-    return jnp.concatenate([(w1 * w2 - v1 @ v2)[None], w1 * v2 + w2 * v1 + jnp.cross(v1, v2)])
-
-
-def tree_state(tree: Tree, q, qd, qdd):
-    """``(qpos, qvel, qacc)`` of the tree joints (base dofs excluded) for jaxbal's
-    ``(q, q̇, q̈)``, unless ``tree.state`` is given.
-
-    ``qpos = c(q)``; a hinge/slide velocity is ``ċ = c'(q) q̇``; a ball joint's is its
-    angular velocity in the child frame, ``ω = 2 vec(Q* ⊗ Q̇)`` (MuJoCo's convention);
-    accelerations are their time derivatives. All by nested ``jax.jvp`` (exact).
-    """
-    if tree.state is not None:
-        return tree.state(q, qd, qdd)
-    q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
-    types = [j.type for b in tree.bodies for j in b.joints]
-
-    def velocity(q_, qd_):
-        qpos, rate = jax.jvp(tree.coordinates, (q_,), (qd_,))
-        if "ball" not in types:
-            return qpos, rate
-        pieces, i = [], 0
-        for kind in types:
-            if kind == "ball":
-                quat, quat_rate = qpos[i : i + 4], rate[i : i + 4]
-                conjugate = quat * jnp.array([1.0, -1.0, -1.0, -1.0])
-                pieces.append(2.0 * _quat_mul(conjugate, quat_rate)[1:])
-                i += 4
-            else:
-                pieces.append(rate[i : i + 1])
-                i += 1
-        return qpos, jnp.concatenate(pieces)
-
-    (qpos, qvel), (_, qacc) = jax.jvp(velocity, (q, qd), (qd, qdd))
-    return qpos, qvel, qacc
-
-
-# --- rotations ----------------------------------------------------------------------
-
-
-def _matrix_to_quat(rotation):
-    """Unit quaternion ``(w, x, y, z)`` of a rotation matrix (Shepperd, branch-free).
-
-    The largest of the four candidate components is chosen with ``argmax`` so the
-    division is well conditioned; the result is differentiable almost everywhere.
-    """
-    r = rotation
-    trace = r[0, 0] + r[1, 1] + r[2, 2]
-    candidates = jnp.stack(
-        [
-            jnp.stack([1 + trace, r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]]),
-            jnp.stack(
-                [r[2, 1] - r[1, 2], 1 + 2 * r[0, 0] - trace, r[0, 1] + r[1, 0], r[0, 2] + r[2, 0]]
-            ),
-            jnp.stack(
-                [r[0, 2] - r[2, 0], r[0, 1] + r[1, 0], 1 + 2 * r[1, 1] - trace, r[1, 2] + r[2, 1]]
-            ),
-            jnp.stack(
-                [r[1, 0] - r[0, 1], r[0, 2] + r[2, 0], r[1, 2] + r[2, 1], 1 + 2 * r[2, 2] - trace]
-            ),
-        ]
-    )
-    diag = jnp.stack([trace, r[0, 0], r[1, 1], r[2, 2]])
-    k = jnp.argmax(diag)
-    row = candidates[k]
-    quat = row / (2.0 * jnp.sqrt(jnp.maximum(row[k], 1e-300)))
-    return quat * jnp.sign(quat[0] + (quat[0] == 0))
 
 
 # --- inertias ---------------------------------------------------------------------------
@@ -332,7 +134,7 @@ def mujoco_inertials(robot: Robot, tree: Tree) -> Inertials:
 
 
 def _quat_of(matrix) -> np.ndarray:
-    return np.asarray(_matrix_to_quat(jnp.asarray(matrix, dtype=float)))
+    return np.asarray(matrix_to_quat(jnp.asarray(matrix, dtype=float)))
 
 
 # --- MJCF ------------------------------------------------------------------------------
@@ -354,8 +156,8 @@ def to_mjcf(
 
     Args:
         robot: any :class:`~jaxbal.robot.Robot`.
-        tree: its :class:`Tree`; default :func:`robot_tree` (with the prescribed
-            fallback).
+        tree: its :class:`~jaxbal._src.mujoco.tree.Tree`; default
+            ``robot.mujoco_tree()``.
         gravity: ``(3,)`` [m/s²], default zero.
         model_name: the ``<mujoco model=...>`` name.
         base_joints: carry the robot on the six base dofs (for the base reaction);
@@ -369,7 +171,7 @@ def to_mjcf(
         ValueError: a body with joints whose welded group has no mass, or an unknown
             parent/body.
     """
-    tree = robot_tree(robot, fallback=True) if tree is None else tree
+    tree = robot.mujoco_tree() if tree is None else tree
     bodies = robot.mass_properties()
     index = {name: i for i, name in enumerate(bodies.names)}
     com = np.asarray(bodies.com, dtype=float)
@@ -493,30 +295,7 @@ def _check_order(tree: Tree) -> None:
         )
 
 
-#: Robots that ``jaxbal export-mjcf NAME`` knows: name -> (module, constructor).
-EXPORTABLE = {
-    "2r": ("jaxbal.robots.planar_arm", "planar_2r"),
-    "3r": ("jaxbal.robots.planar_arm", "planar_3r"),
-    "scara": ("jaxbal.robots.scara", "scara"),
-    "dual-v": ("jaxbal.robots.dual_v", "dual_v"),
-    "orthoglide": ("jaxbal.robots.orthoglide", "orthoglide"),
-}
-
-
-def export_mjcf(robot: Robot | str, gravity=None, base_joints: bool = False) -> str:
-    """MJCF of ``robot`` (or a name of :data:`EXPORTABLE`) for
-    ``jaxbal export-mjcf ROBOT > robot.xml``, viewer-ready (``python -m mujoco.viewer
-    --mjcf robot.xml``). The nominal robot, base fixed unless ``base_joints``.
-
-    Raises:
-        ValueError: an unknown robot name.
-    """
-    if isinstance(robot, str):
-        import importlib
-
-        key = robot.lower().replace("_", "-")
-        if key not in EXPORTABLE:
-            raise ValueError(f"unknown robot {robot!r}; choose one of {sorted(EXPORTABLE)}")
-        module, constructor = EXPORTABLE[key]
-        robot = getattr(importlib.import_module(module), constructor)()
+def export_mjcf(robot: Robot, gravity=None, base_joints: bool = False) -> str:
+    """Viewer-ready MJCF of ``robot`` (``jaxbal export-mjcf ROBOT > robot.xml``, then
+    ``python -m mujoco.viewer --mjcf robot.xml``); base fixed unless ``base_joints``."""
     return to_mjcf(robot, gravity=gravity, base_joints=base_joints)

@@ -19,10 +19,10 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from jaxbal._linalg import matvec, rmatvec
-from jaxbal.momentum import body_com_positions, body_velocities
-from jaxbal.robot import Robot
-from jaxbal.types import Array, Coordinates, Float, Scalar, Vec3
+from jaxbal._src.linalg import matvec, rmatvec
+from jaxbal._src.momentum import body_com_positions, body_velocities
+from jaxbal._src.robot import Robot
+from jaxbal._src.types import Array, Coordinates, Float, Scalar, Vec3
 
 
 def kinetic_energy(robot: Robot, q: Coordinates, qd: Coordinates) -> Scalar:

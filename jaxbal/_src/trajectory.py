@@ -15,8 +15,8 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from jaxbal.profiles import Profile
-from jaxbal.types import Array, Float, ScalarLike
+from jaxbal._src.profiles import Profile
+from jaxbal._src.types import Array, Float, ScalarLike
 
 
 def time_derivatives(path: Callable, t: ScalarLike, order: int = 2) -> tuple:

@@ -38,8 +38,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal.types import Array, Float
-from jaxbal.validation import is_traced
+from jaxbal._src.types import Array, Float
+from jaxbal._src.validation import is_traced
 
 __all__ = ["RootSolution", "newton_solve"]
 

@@ -53,10 +53,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal.profiles import Profile, Quintic
-from jaxbal.robot import Bodies, Robot, concatenate, planar_inertia, point_masses, rot_z
-from jaxbal.types import Array, Float, ScalarLike
-from jaxbal.validation import check_nonnegative, check_shape, is_traced, raise_if_invalid
+from jaxbal._src.linalg import two_link_ik, unit
+from jaxbal._src.mujoco.tree import Joint, Tree, TreeBody, Z
+from jaxbal._src.profiles import Profile, Quintic
+from jaxbal._src.robot import Bodies, Robot, concatenate, planar_inertia, point_masses, rot_z
+from jaxbal._src.types import Array, Float, ScalarLike
+from jaxbal._src.validation import check_nonnegative, check_shape, is_traced, raise_if_invalid
 
 __all__ = [
     "PickAndPlace",
@@ -66,10 +68,6 @@ __all__ = [
     "joint_trajectory",
     "scara",
 ]
-
-
-def _unit(angle):
-    return jnp.stack([jnp.cos(angle), jnp.sin(angle)], -1)
 
 
 def _in_plane(points2d, height):
@@ -90,6 +88,13 @@ class Scara(Robot):
         vertical_counterweight: mass ``m_v`` moving opposite to the end-effector [kg]
             (default 0: no counterweight).
     """
+
+    design_fields = {
+        "counter_mass": "counter_masses",
+        "counter_distance": "counter_distances",
+        "vertical_counterweight": "vertical_counterweight",
+        "payload": "payload",
+    }
 
     lengths: Float[Array, "2"]
     com_offsets: Float[Array, "3"]
@@ -175,7 +180,7 @@ class Scara(Robot):
     def joint_positions(self, q) -> Float[Array, "3 2"]:
         """Horizontal positions of O1, O2, O3 [m], shape ``(3, 2)``."""
         q = jnp.asarray(q, dtype=float)
-        steps = self.lengths[:, None] * _unit(jnp.cumsum(q[:2]))
+        steps = self.lengths[:, None] * unit(jnp.cumsum(q[:2]))
         return jnp.concatenate([jnp.zeros((1, 2)), jnp.cumsum(steps, axis=0)], axis=0)
 
     def end_effector(self, q) -> Float[Array, "4"]:
@@ -183,7 +188,7 @@ class Scara(Robot):
         q = jnp.asarray(q, dtype=float)
         return jnp.concatenate([self.joint_positions(q)[2], jnp.sum(q[:3])[None], q[3:]])
 
-    def inverse_kinematics(self, pose, mode: int = 1, return_valid: bool = False):
+    def inverse_kinematics(self, pose, *, branch=None, return_valid: bool = False):
         """Joint coordinates ``(θ1, θ2, θ3, d4)`` of an end-effector pose, eqs (4)-(6).
 
         Angles are not wrapped, so a continuous pose path gives continuous joints
@@ -191,25 +196,66 @@ class Scara(Robot):
 
         Args:
             pose: ``(4,)`` ``(x, y, φ, z)`` [m, m, rad, m].
-            mode: ``+1`` or ``−1``, the sign of ``sin θ2`` (the "±" of eq 4; ``+1`` is the
-                working mode of the paper's move).
-            return_valid: also return the validity mask (for batched code).
+            branch: ``+1`` or ``−1`` (or ``(±1,)``), the sign of ``sin θ2`` (the "±" of
+                eq 4; ``+1`` is the working mode of the paper's move).
+            return_valid: return ``(q, valid)`` and never raise (batched code).
 
         Raises:
             ValueError: eagerly, naming the pose, when (x, y) is out of reach.
         """
         pose = jnp.asarray(pose, dtype=float)
         check_shape("pose", pose, (4,))
-        l1, l2 = self.lengths[0], self.lengths[1]
-        x, y = pose[0], pose[1]
-        cos_q2 = (x**2 + y**2 - l1**2 - l2**2) / (2.0 * l1 * l2)
-        valid = jnp.abs(cos_q2) <= 1.0
+        (mode,) = self.branch(branch)
+        q1, q2, valid = two_link_ik(pose[:2], self.lengths[0], self.lengths[1], mode)
+        valid = valid & jnp.all(jnp.isfinite(pose))
         if not return_valid:
             raise_if_invalid(valid, "SCARA end-effector pose out of reach (x, y, φ, z)", pose)
-        q2 = mode * jnp.arccos(jnp.clip(cos_q2, -1.0 + 1e-15, 1.0 - 1e-15))
-        q1 = jnp.arctan2(y, x) - jnp.arctan2(l2 * jnp.sin(q2), l1 + l2 * jnp.cos(q2))
         q = jnp.stack([q1, q2, pose[2] - q1 - q2, pose[3]])
         return (q, valid) if return_valid else q
+
+    # --- MuJoCo --------------------------------------------------------------------
+
+    def mujoco_tree(self) -> Tree:
+        """RRR + prismatic; the vertical counterweight hangs at O3 on its own slide
+        (the cable of Fig 5 is the coordinate map ``−d4`` of that slide)."""
+        l1, l2 = (float(x) for x in np.asarray(self.lengths))
+        bodies = (
+            TreeBody("link1", None, joints=(Joint("theta1", "hinge", Z),), visual_to=(l1, 0, 0)),
+            TreeBody("counter_mass1", "link1"),
+            TreeBody(
+                "link2",
+                "link1",
+                pos=(l1, 0, 0),
+                joints=(Joint("theta2", "hinge", Z),),
+                visual_to=(l2, 0, 0),
+            ),
+            TreeBody("counter_mass2", "link2"),
+            TreeBody(
+                "vertical_counterweight",
+                "link2",
+                pos=(l2, 0, 0),
+                joints=(Joint("cable", "slide", Z),),
+            ),
+            TreeBody(
+                "end_effector",
+                "link2",
+                pos=(l2, 0, 0),
+                joints=(Joint("theta3", "hinge", Z), Joint("d4", "slide", Z)),
+                visual_to=(0, 0, -0.1),
+            ),
+            TreeBody("payload", "end_effector"),
+            TreeBody("counter_mass3", "end_effector"),
+        )
+        return Tree(
+            bodies=bodies,
+            coordinates=_mujoco_coordinates,
+            actuated=("theta1", "theta2", "theta3", "d4"),
+        )
+
+
+def _mujoco_coordinates(q):
+    """MuJoCo's ``qpos = (θ1, θ2, −d4, θ3, d4)`` (module level: trees compare equal)."""
+    return jnp.stack([q[0], q[1], -q[3], q[2], q[3]])
 
 
 def scara(payload: ScalarLike = 0.0, vertical_counterweight: ScalarLike = 0.0) -> Scara:
@@ -270,10 +316,10 @@ class ScaraTrajectory(eqx.Module):
 
     robot: Scara
     move: Callable
-    mode: int = eqx.field(static=True, default=1)
+    branch: tuple[int, ...] | int | None = eqx.field(static=True, default=None)
 
     def __call__(self, t: ScalarLike) -> Float[Array, "4"]:
-        return self.robot.inverse_kinematics(self.move(t), self.mode)
+        return self.robot.inverse_kinematics(self.move(t), branch=self.branch)
 
 
 def check_reachable(robot: Scara, move: Callable, duration, count: int = 201) -> None:
@@ -286,7 +332,7 @@ def check_reachable(robot: Scara, move: Callable, duration, count: int = 201) ->
         return
     times = np.linspace(0.0, float(duration), count)
     poses = jax.vmap(move)(jnp.asarray(times))
-    _, valid = jax.vmap(lambda p: robot.inverse_kinematics(p, 1, return_valid=True))(poses)
+    _, valid = jax.vmap(lambda p: robot.inverse_kinematics(p, branch=1, return_valid=True))(poses)
     valid = np.asarray(valid)
     if not np.all(valid):
         first = int(np.argmin(valid))
@@ -298,11 +344,11 @@ def check_reachable(robot: Scara, move: Callable, duration, count: int = 201) ->
         )
 
 
-def joint_trajectory(robot: Scara, move: PickAndPlace, mode: int = 1) -> ScaraTrajectory:
+def joint_trajectory(robot: Scara, move: PickAndPlace, branch=None) -> ScaraTrajectory:
     """The joint motion of a pick-and-place move, checked eagerly for reachability.
 
     Raises:
         ValueError: when the move's start, end or any intermediate point is out of reach.
     """
     check_reachable(robot, move, move.duration)
-    return ScaraTrajectory(robot, move, mode)
+    return ScaraTrajectory(robot, move, branch)

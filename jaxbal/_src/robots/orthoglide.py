@@ -50,33 +50,25 @@ from __future__ import annotations
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
-from jaxbal.implicit import newton_solve
-from jaxbal.momentum import center_of_mass
-from jaxbal.planning import EndEffectorLine, com_line, shaking_peaks  # noqa: F401 (re-exported)
-from jaxbal.profiles import BangBang, Quintic
-from jaxbal.robot import Bodies, Robot, concatenate, point_masses
-from jaxbal.trajectory import StraightLine
-from jaxbal.types import Array, Float
-from jaxbal.validation import check_nonnegative, check_shape, is_traced, raise_if_invalid
+from jaxbal._src.implicit import newton_solve
+from jaxbal._src.linalg import skew
+from jaxbal._src.mujoco.tree import Connect, Joint, Tree, TreeBody, minimal_rotation_quat, vec
+from jaxbal._src.momentum import center_of_mass
+from jaxbal._src.planning import EndEffectorLine, com_line
+from jaxbal._src.profiles import BangBang, Quintic
+from jaxbal._src.robot import Bodies, Robot, concatenate, point_masses
+from jaxbal._src.trajectory import StraightLine
+from jaxbal._src.types import Array, Float
+from jaxbal._src.validation import check_nonnegative, check_shape, is_traced, raise_if_invalid
 
-__all__ = ["Orthoglide", "motion_cases", "orthoglide", "shaking_peaks", "switching_times"]
+__all__ = ["COUNTER_SLIDERS", "Orthoglide", "motion_cases", "orthoglide", "switching_times"]
 
 _EYE = jnp.eye(3)
 # A_i - B_i = l * _SLIDER_DIRECTIONS[i]  (§2.2: A_1 = (ρ_x + l, 0, l), …)
+COUNTER_SLIDERS = ("counter_slider_x", "counter_slider_y", "counter_slider_z")
 _SLIDER_DIRECTIONS = jnp.array([[1.0, 0.0, 1.0], [1.0, 1.0, 0.0], [0.0, 1.0, 1.0]])
-
-
-def _skew(v):
-    zero = jnp.zeros_like(v[..., 0])
-    return jnp.stack(
-        [
-            jnp.stack([zero, -v[..., 2], v[..., 1]], -1),
-            jnp.stack([v[..., 2], zero, -v[..., 0]], -1),
-            jnp.stack([-v[..., 1], v[..., 0], zero], -1),
-        ],
-        -2,
-    )
 
 
 def _minimal_rotation(e0, d):
@@ -86,21 +78,16 @@ def _minimal_rotation(e0, d):
     """
     v = jnp.cross(e0, d)
     c = jnp.sum(e0 * d, -1)[..., None, None]
-    k = _skew(v)
+    k = skew(v)
     return _EYE + k + (k @ k) / jnp.maximum(1.0 + c, 1e-12)
 
 
 def _com_residual(p, params):
     """Eq (6) with eq (1): ``S(ρ(p), p) − S_target`` for the Newton solve of the COM IK."""
-    robot, target, mode = params
+    robot, target, signs = params
     root = jnp.sqrt(jnp.maximum(robot._radicands(p), 1e-30))
-    q = jnp.concatenate([p + mode * root, p])
+    q = jnp.concatenate([p + signs * root, p])
     return center_of_mass(robot, q) - target
-
-
-def _check_mode(mode) -> None:
-    if mode not in (1, -1):
-        raise ValueError(f"mode (configuration index s of eq (1)) must be +1 or -1, got {mode}")
 
 
 class Orthoglide(Robot):
@@ -115,7 +102,14 @@ class Orthoglide(Robot):
         parallelogram_inertia: transverse inertia of each parallelogram about its COM
             (slender bar, no axial inertia) [kg·m²].
         payload: payload mass at P [kg].
+        counter_masses: ``(3,)`` counter-sliders [kg] (default 0): point masses driven
+            opposite to slider i along axis i (at ``−ρ_i e_i``, e.g. by a rack and
+            pinion), the classical balancing of a linear axis. Not in the paper: a
+            design variable of :mod:`jaxbal.design`.
     """
+
+    branch_size = 3
+    design_fields = {"counter_mass": "counter_masses", "payload": "payload"}
 
     length: Float[Array, ""]
     slider_offset: Float[Array, ""]
@@ -124,6 +118,7 @@ class Orthoglide(Robot):
     platform_mass: Float[Array, ""]
     parallelogram_inertia: Float[Array, ""]
     payload: Float[Array, ""]
+    counter_masses: Float[Array, "3"]
 
     def __init__(
         self,
@@ -134,6 +129,7 @@ class Orthoglide(Robot):
         platform_mass=0.1,
         parallelogram_inertia=None,
         payload=0.0,
+        counter_masses=(0.0, 0.0, 0.0),
     ):
         self.length = jnp.asarray(length, dtype=float)
         self.slider_offset = jnp.asarray(slider_offset, dtype=float)
@@ -144,6 +140,9 @@ class Orthoglide(Robot):
             parallelogram_inertia = self.parallelogram_mass * self.length**2 / 12.0
         self.parallelogram_inertia = jnp.asarray(parallelogram_inertia, dtype=float)
         self.payload = jnp.asarray(payload, dtype=float)
+        self.counter_masses = jnp.asarray(counter_masses, dtype=float)
+        check_shape("counter_masses", self.counter_masses, (3,))
+        check_nonnegative("Orthoglide.counter_masses", self.counter_masses)
         for name in (
             "length",
             "slider_offset",
@@ -168,6 +167,24 @@ class Orthoglide(Robot):
     def dof(self) -> int:
         return 6
 
+    @property
+    def independent(self) -> tuple[int, ...]:
+        return (3, 4, 5)  # the platform point P
+
+    @property
+    def actuated(self) -> tuple[int, ...]:
+        return (0, 1, 2)  # the slider inputs ρ
+
+    def end_effector(self, q) -> Float[Array, "3"]:
+        """The platform point ``P`` [m] (the last three coordinates)."""
+        return jnp.asarray(q, dtype=float)[3:]
+
+    def constraint(self, q) -> Float[Array, "3"]:
+        """Leg closures ``|P − B_i| − L`` [m], eq (1) (zero for consistent ``q``)."""
+        q = jnp.asarray(q, dtype=float)
+        legs = q[3:][None, :] - q[:3, None] * _EYE
+        return jnp.sqrt(jnp.sum(legs**2, axis=-1)) - self.length
+
     # --- the two methods every robot provides --------------------------------------
 
     def mass_properties(self) -> Bodies:
@@ -188,7 +205,8 @@ class Orthoglide(Robot):
         points = point_masses(
             jnp.stack([self.platform_mass, self.payload]), ("platform", "payload")
         )
-        return concatenate(sliders, parallelograms, points)
+        counter = point_masses(self.counter_masses, COUNTER_SLIDERS)
+        return concatenate(sliders, parallelograms, points, counter)
 
     def body_frames(self, q):
         check_shape("q", q, (6,))
@@ -197,9 +215,15 @@ class Orthoglide(Robot):
         b = rho[:, None] * _EYE  # B_i = ρ_i e_i
         d = (p[None, :] - b) / self.length
         rotations = _minimal_rotation(-_EYE, d)
-        origins = jnp.concatenate([b, b, jnp.stack([p, p])], axis=0)
+        origins = jnp.concatenate([b, b, jnp.stack([p, p]), -b], axis=0)
         rot = jnp.concatenate(
-            [jnp.broadcast_to(_EYE, (3, 3, 3)), rotations, _EYE[None], _EYE[None]]
+            [
+                jnp.broadcast_to(_EYE, (3, 3, 3)),
+                rotations,
+                _EYE[None],
+                _EYE[None],
+                jnp.broadcast_to(_EYE, (3, 3, 3)),
+            ]
         )
         return origins, rot
 
@@ -210,14 +234,14 @@ class Orthoglide(Robot):
         sq = p**2
         return self.length**2 - (jnp.sum(sq) - sq)
 
-    def inverse_kinematics(self, p, mode: int = 1, return_valid: bool = False):
+    def inverse_kinematics(self, pose, *, branch=None, return_valid: bool = False):
         """Inputs ρ and all coordinates ``q = (ρ, p)`` for the platform point ``p``, eq (1).
 
         Args:
-            p: ``(3,)`` position of P [m].
-            mode: the configuration index ``s_x = s_y = s_z`` of eq (1), ``+1`` (the
-                paper's, §3) or ``−1``.
-            return_valid: also return the validity mask (all radicands > 0).
+            pose: ``(3,)`` position of P [m].
+            branch: the configuration indices ``(s_x, s_y, s_z)`` of eq (1); ``+1`` (all
+                legs, the paper's, §3, and the default) or any tuple of ±1.
+            return_valid: return ``(q, valid)`` (all radicands > 0) and never raise.
 
         Returns:
             ``q (6,)`` [m] (and ``valid``).
@@ -225,13 +249,14 @@ class Orthoglide(Robot):
         Raises:
             ValueError: eagerly, when ``p`` is out of reach of a leg (‖p_⊥‖ ≥ L).
         """
-        p = jnp.asarray(p, dtype=float)
-        check_shape("p", p, (3,))
-        _check_mode(mode)
+        p = jnp.asarray(pose, dtype=float)
+        check_shape("pose", p, (3,))
+        signs = jnp.asarray(self.branch(branch), dtype=float)
         radicand = self._radicands(p)
-        valid = jnp.all(radicand > 0.0)
-        raise_if_invalid(valid, "platform point out of reach of the Orthoglide legs", p)
-        rho = p + mode * jnp.sqrt(jnp.maximum(radicand, 1e-30))
+        valid = jnp.all(radicand > 0.0) & jnp.all(jnp.isfinite(p))
+        if not return_valid:
+            raise_if_invalid(valid, "platform point out of reach of the Orthoglide legs", p)
+        rho = p + signs * jnp.sqrt(jnp.maximum(radicand, 1e-30))
         q = jnp.concatenate([rho, p])
         return (q, valid) if return_valid else q
 
@@ -271,7 +296,7 @@ class Orthoglide(Robot):
         return center_of_mass(self, self.inverse_kinematics(p))
 
     def com_inverse_kinematics(
-        self, com, free=None, mode: int = 1, return_valid: bool = False, guess=None
+        self, com, free=None, *, branch=None, return_valid: bool = False, guess=None
     ):
         """All coordinates ``q = (ρ, p)`` that put the total COM at ``com``.
 
@@ -284,8 +309,8 @@ class Orthoglide(Robot):
             com: ``(3,)`` target centre of mass [m].
             free: must be ``None`` (the Orthoglide has no free coordinate; the argument
                 keeps the signature of :class:`jaxbal.planning.ComLine`).
-            mode: configuration index of eq (1), ``+1`` or ``−1``.
-            return_valid: also return the validity mask (converged and reachable).
+            branch: configuration indices of eq (1) (see :meth:`inverse_kinematics`).
+            return_valid: return ``(q, valid)`` (converged, reachable) and never raise.
             guess: ``(3,)`` initial platform point [m] (default: home, 0).
 
         Raises:
@@ -293,7 +318,7 @@ class Orthoglide(Robot):
         """
         com = jnp.asarray(com, dtype=float)
         check_shape("com", com, (3,))
-        _check_mode(mode)
+        signs = jnp.asarray(self.branch(branch), dtype=float)
         if free is not None:
             raise ValueError("the Orthoglide has no free coordinate: pass free=None")
         x0 = jnp.zeros(3) if guess is None else jnp.asarray(guess, dtype=float)
@@ -301,18 +326,69 @@ class Orthoglide(Robot):
         solution = newton_solve(
             _com_residual,
             x0,
-            (self, com, jnp.asarray(mode, dtype=float)),
+            (self, com, signs),
             throw=False,
             what="Orthoglide COM inverse kinematics",
         )
         p = solution.value
         reachable = jnp.all(self._radicands(p) > 0.0)
         valid = solution.converged & reachable
-        if not is_traced(valid):
+        if not return_valid and not is_traced(valid):
             raise_if_invalid(valid, "COM target not reachable by the Orthoglide", com)
-        rho = p + mode * jnp.sqrt(jnp.maximum(self._radicands(p), 1e-30))
+        rho = p + signs * jnp.sqrt(jnp.maximum(self._radicands(p), 1e-30))
         q = jnp.concatenate([rho, p])
         return (q, valid) if return_valid else q
+
+    # --- MuJoCo --------------------------------------------------------------------
+
+    def mujoco_tree(self) -> Tree:
+        """Three sliders, each carrying a parallelogram (a slender bar, on a ball joint at
+        B_i) whose far end is ``connect``-ed to the translating platform P; the
+        counter-sliders on their own slides (coordinate ``−ρ_i``).
+
+        The parallelogram's orientation is the minimal rotation taking the home
+        direction ``−e_i`` onto ``(P − B_i)/|P − B_i|`` (as :meth:`body_frames`; the bar
+        has no axial inertia, so the twist about its axis carries no momentum).
+        """
+        length = float(self.length)
+        eye = np.eye(3)
+        bodies, connects = [], []
+        for i, axis in enumerate("xyz"):
+            slide = Joint(f"rho_{axis}", "slide", vec(eye[i]))
+            bodies += [
+                TreeBody(f"slider_{axis}", None, joints=(slide,)),
+                TreeBody(
+                    f"parallelogram_{axis}",
+                    f"slider_{axis}",
+                    joints=(Joint(f"leg_{axis}", "ball"),),
+                    visual_to=vec(-length * eye[i]),
+                ),
+            ]
+            end = vec(-length * eye[i])
+            connects.append(Connect(f"parallelogram_{axis}", end, "platform", (0.0, 0.0, 0.0)))
+        platform = tuple(Joint(f"p_{a}", "slide", vec(eye[i])) for i, a in enumerate("xyz"))
+        bodies += [TreeBody("platform", None, joints=platform), TreeBody("payload", "platform")]
+        bodies += [
+            TreeBody(name, None, joints=(Joint(f"{name}_slide", "slide", vec(eye[i])),))
+            for i, name in enumerate(COUNTER_SLIDERS)
+        ]
+        return Tree(
+            bodies=tuple(bodies),
+            coordinates=_mujoco_coordinates,
+            connects=tuple(connects),
+            actuated=("rho_x", "rho_y", "rho_z"),
+        )
+
+
+def _mujoco_coordinates(q):
+    """MuJoCo's ``qpos = (ρ_i, Q_i per leg, p, −ρ)``, ``Q_i`` the minimal rotation
+    ``−e_i → P − B_i`` (quaternion)."""
+    rho, p = q[:3], q[3:]
+    eye = jnp.eye(3)
+    pieces = []
+    for i in range(3):
+        pieces += [rho[i : i + 1], minimal_rotation_quat(-eye[i], p - rho[i] * eye[i])]
+    return jnp.concatenate(pieces + [p, -rho])
 
 
 def orthoglide(payload: float = 0.0, **overrides) -> Orthoglide:

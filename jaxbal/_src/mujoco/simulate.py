@@ -35,9 +35,10 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-from jaxbal.mjcf import Tree, robot_tree, to_mjcf, tree_state
-from jaxbal.robot import Robot
-from jaxbal.trajectory import sample
+from jaxbal._src.mujoco.mjcf import to_mjcf
+from jaxbal._src.mujoco.tree import Tree, tree_state
+from jaxbal._src.robot import Robot
+from jaxbal._src.trajectory import sample
 
 
 class Tracking(NamedTuple):
@@ -95,7 +96,7 @@ def simulate_open_loop(
         tracked: joint names to compare (default: every tree joint).
         timestep: MuJoCo time step [s].
         record_every: record one step in this many.
-        tree: default :func:`jaxbal.mjcf.robot_tree`.
+        tree: default ``robot.mujoco_tree()``.
         effort_scale: factor applied to the efforts (1; e.g. 1.001 measures how much
             a 0.1 % torque error moves the platform, the check's sensitivity).
 
@@ -106,7 +107,7 @@ def simulate_open_loop(
         ValueError: no actuated joints, a tracked joint that is not a hinge/slide, or
             an initial state that does not close the loops.
     """
-    tree = robot_tree(robot) if tree is None else tree
+    tree = robot.mujoco_tree() if tree is None else tree
     if not tree.actuated:
         raise ValueError("the robot's tree has no actuated joints to drive")
     xml = _constraint_xml(to_mjcf(robot, tree, base_joints=False, timestep=timestep), timestep)
@@ -183,9 +184,9 @@ def mujoco_actuator_efforts(robot: Robot, coordinates: Callable, u, ud, udd, tre
     Returns:
         ``(n_actuated,)`` efforts [N·m or N], in the tree's ``actuated`` order.
     """
-    from jaxbal.mjx import mujoco_model
+    from jaxbal._src.mujoco.inverse import mujoco_model
 
-    tree = robot_tree(robot) if tree is None else tree
+    tree = robot.mujoco_tree() if tree is None else tree
     compiled = mujoco_model(robot, tree=tree)
     u, ud, udd = (jnp.asarray(a, dtype=float) for a in (u, ud, udd))
 

@@ -45,11 +45,12 @@ import numpy as np
 with contextlib.redirect_stdout(io.StringIO()):  # MJX prints "Failed to import warp" (harmless)
     from mujoco import mjx
 
-from jaxbal.mjcf import BASE_MASS, Tree, mujoco_inertials, robot_tree, to_mjcf, tree_state
-from jaxbal.momentum import shaking_wrench
-from jaxbal.robot import Robot
-from jaxbal.types import Coordinates, Vec3
-from jaxbal.validation import check_shape
+from jaxbal._src.mujoco.mjcf import BASE_MASS, mujoco_inertials, to_mjcf
+from jaxbal._src.mujoco.tree import Tree, tree_state
+from jaxbal._src.momentum import shaking_wrench
+from jaxbal._src.robot import Robot
+from jaxbal._src.types import Coordinates, Vec3
+from jaxbal._src.validation import check_shape
 
 
 @functools.lru_cache(maxsize=64)
@@ -105,13 +106,12 @@ def mujoco_model(robot: Robot, gravity=None, tree: Tree | None = None) -> Mujoco
     Args:
         robot: a concrete robot (not traced).
         gravity: ``(3,)`` [m/s²], default zero.
-        tree: default :func:`jaxbal.mjcf.robot_tree` (registered builder, else the
-            less independent :func:`jaxbal.mjx_trees.prescribed_tree`).
+        tree: default ``robot.mujoco_tree()``.
 
     The ``MjModel`` is cached and shared between calls with the same MJCF: copy it
     (``copy.copy(model)``) before changing its options.
     """
-    tree = robot_tree(robot, fallback=True) if tree is None else tree
+    tree = robot.mujoco_tree() if tree is None else tree
     gravity = np.zeros(3) if gravity is None else np.asarray(gravity, dtype=float)
     xml = to_mjcf(robot, tree, gravity=gravity)
     return MujocoRobot(model=_compile(xml), tree=tree, gravity=gravity, xml=xml)
@@ -350,7 +350,7 @@ def confirm(
     ref_force, ref_moment, gross_force, gross_moment = _reference_and_scales(robot, q, qd, qdd, g)
     if engine == "mujoco":
         force, moment = mujoco_base_reaction(robot, q, qd, qdd, gravity=gravity, tree=tree)
-        independent = (robot_tree(robot, fallback=True) if tree is None else tree).independent
+        independent = (robot.mujoco_tree() if tree is None else tree).independent
     elif engine == "mjx":
         compiled = mjx_model(robot, gravity, tree)
         force, moment = _mjx_along(compiled, robot, q, qd, qdd)
@@ -384,7 +384,7 @@ def confirm_path(
     ``q, q̇, q̈`` are sampled exactly (nested ``jvp``, jitted) as in
     :func:`jaxbal.sample`; use this for the MJX column of a shaking-force table.
     """
-    from jaxbal.trajectory import sample
+    from jaxbal._src.trajectory import sample
 
     q, qd, qdd = jax.jit(lambda ts: sample(joint_path, ts, 2)[:3])(jnp.asarray(times, dtype=float))
     return confirm(robot, q, qd, qdd, gravity=gravity, engine=engine, tree=tree)

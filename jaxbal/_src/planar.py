@@ -22,9 +22,9 @@ import abc
 import jax
 import jax.numpy as jnp
 
-from jaxbal._linalg import cos_sin
-from jaxbal.robot import Robot, rot_z_from
-from jaxbal.types import Array, Coordinates, Float, Vec3
+from jaxbal._src.linalg import cos_sin
+from jaxbal._src.robot import Robot, rot_z_from
+from jaxbal._src.types import Array, Coordinates, Float, Vec3
 
 
 class PlanarRobot(Robot):

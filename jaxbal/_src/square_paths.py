@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from jaxbal.types import Array, Float
+from jaxbal._src.types import Array, Float
 
 #: The eight paths of Tables 1-3, as (start, end) point numbers.
 BRIOT2012_PATHS: tuple[tuple[int, int], ...] = (

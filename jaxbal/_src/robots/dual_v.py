@@ -55,13 +55,18 @@ References:
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
-from jaxbal.planar import PlanarRobot
-from jaxbal.robot import Bodies, planar_inertia
-from jaxbal.types import Array, Float
-from jaxbal.validation import check_nonnegative, check_shape, raise_if_invalid
+from jaxbal._src.linalg import unit, wrap
+from jaxbal._src.mujoco.tree import Connect, Joint, Tree, TreeBody, Z, vec
+from jaxbal._src.planar import PlanarRobot
+from jaxbal._src.robot import Bodies, planar_inertia
+from jaxbal._src.types import Array, Float
+from jaxbal._src.validation import check_nonnegative, check_shape, raise_if_invalid
 
 __all__ = ["CROSSED", "OUTWARD", "DualV", "dual_v"]
 
@@ -70,14 +75,6 @@ CROSSED = (-1, 1, -1, 1)
 BASE_SIDE = jnp.array([1.0, -1.0, -1.0, 1.0])  # x sign of A_i
 PLATFORM_END = jnp.array([1.0, 1.0, -1.0, -1.0])  # s_i: y sign of A_i and end of C_i
 N_COORDINATES = 11
-
-
-def _unit(angle):
-    return jnp.stack([jnp.cos(angle), jnp.sin(angle)], -1)
-
-
-def _wrap(angle):
-    return jnp.arctan2(jnp.sin(angle), jnp.cos(angle))
 
 
 def _per_arm(value):
@@ -103,6 +100,8 @@ class DualV(PlanarRobot):
             0 = removed, the "96.72 % balanced" robot).
         inertia_act: ``(4,)`` actuator rotor inertias [kg·m²].
     """
+
+    branch_size = 4
 
     l1: Float[Array, "4"]
     l2: Float[Array, "4"]
@@ -143,6 +142,22 @@ class DualV(PlanarRobot):
     def dof(self) -> int:
         return N_COORDINATES
 
+    @property
+    def default_branch(self) -> tuple[int, ...]:
+        return OUTWARD
+
+    @property
+    def independent(self) -> tuple[int, ...]:
+        return (8, 9, 10)  # the platform pose
+
+    @property
+    def actuated(self) -> tuple[int, ...]:
+        return (0, 1, 2, 3)  # θ_11 … θ_41
+
+    def end_effector(self, q) -> Float[Array, "3"]:
+        """The platform pose ``(x5, y5, θ5)`` [m, m, rad] (the last three coordinates)."""
+        return jnp.asarray(q, dtype=float)[8:11]
+
     # --- geometry -------------------------------------------------------------------
 
     def base_pivots(self) -> Float[Array, "4 2"]:
@@ -159,8 +174,8 @@ class DualV(PlanarRobot):
         """``(A, B, C)``, each ``(4, 2)`` [m], from the coordinates ``q``."""
         q = jnp.asarray(q, dtype=float)
         base = self.base_pivots()
-        elbows = base + self.l1[:, None] * _unit(q[0:4])
-        return base, elbows, elbows + self.l2[:, None] * _unit(q[4:8])
+        elbows = base + self.l1[:, None] * unit(q[0:4])
+        return base, elbows, elbows + self.l2[:, None] * unit(q[4:8])
 
     def constraint(self, q) -> Float[Array, "8"]:
         """Loop-closure residuals ``C_i(arm) - C_i(platform)`` (zero on valid ``q``) [m]."""
@@ -240,13 +255,13 @@ class DualV(PlanarRobot):
 
     # --- kinematics -----------------------------------------------------------------
 
-    def inverse_kinematics(self, pose, branch=OUTWARD, return_valid: bool = False):
+    def inverse_kinematics(self, pose, *, branch=None, return_valid: bool = False):
         """All 11 coordinates from the platform pose, closed form per arm.
 
         Args:
             pose: ``(3,)`` platform pose ``(x5 [m], y5 [m], θ5 [rad])``.
-            branch: four elbow signs ``σ_i = sign sin(θ_i2 - θ_i1)`` (``OUTWARD``,
-                ``CROSSED`` or any tuple of ±1).
+            branch: four elbow signs ``σ_i = sign sin(θ_i2 - θ_i1)`` (``OUTWARD``, the
+                default, ``CROSSED`` or any tuple of ±1).
             return_valid: return ``(q, valid)``, a boolean mask (all arms reach their
                 joint), instead of raising; ``q`` is then clipped to the boundary.
 
@@ -259,21 +274,103 @@ class DualV(PlanarRobot):
         """
         pose = jnp.asarray(pose, dtype=float)
         check_shape("pose", pose, (3,))
-        sigma = jnp.asarray(branch, dtype=float)
-        check_shape("branch", sigma, (4,))
+        sigma = jnp.asarray(self.branch(branch), dtype=float)
         reach = self.platform_joints(pose) - self.base_pivots()
         distance2 = jnp.sum(reach**2, -1)
         distance = jnp.sqrt(jnp.maximum(distance2, 1e-24))
         cos_alpha = (self.l1**2 + distance2 - self.l2**2) / (2.0 * self.l1 * distance)
-        valid = jnp.all(jnp.abs(cos_alpha) <= 1.0) & jnp.all(distance2 > 1e-20)
+        valid = (
+            jnp.all(jnp.abs(cos_alpha) <= 1.0)
+            & jnp.all(distance2 > 1e-20)
+            & jnp.all(jnp.isfinite(pose))
+        )
+        cos_alpha = jnp.where(jnp.isfinite(cos_alpha), cos_alpha, 0.0)
         if not return_valid:
             raise_if_invalid(valid, "DUAL-V platform pose outside the workspace", pose)
         alpha = jnp.arccos(jnp.clip(cos_alpha, -1.0 + 1e-15, 1.0 - 1e-15))
-        theta1 = _wrap(jnp.arctan2(reach[:, 1], reach[:, 0]) - sigma * alpha)
-        to_end = reach - self.l1[:, None] * _unit(theta1)
+        theta1 = wrap(jnp.arctan2(reach[:, 1], reach[:, 0]) - sigma * alpha)
+        to_end = reach - self.l1[:, None] * unit(theta1)
         theta2 = jnp.arctan2(to_end[:, 1], to_end[:, 0])
         q = jnp.concatenate([theta1, theta2, pose])
         return (q, valid) if return_valid else q
+
+    # --- design variables -----------------------------------------------------------
+
+    def design(self) -> dict:
+        """``counter_mass`` ``(4,)`` [kg]: the mounted counter-masses (tuning fraction
+        applied); ``counter_distance`` ``(4,)`` [m]: their COM behind A_i; ``payload``."""
+        mounted = self.m_cm - (1.0 - self.tuning_scale) * self.m_tun
+        distance = self.counter_mass_moments() / jnp.maximum(mounted, 1e-12)
+        return {"counter_mass": mounted, "counter_distance": distance, "payload": self.payload}
+
+    def with_design(self, design: Mapping) -> DualV:
+        """The robot with new design variables. A new counter-mass or distance makes
+        each counter-mass one body (tuning mass folded in) whose inertia about its own
+        COM scales with its mass (same radius of gyration)."""
+        robot = super().with_design({k: v for k, v in design.items() if k == "payload"})
+        if not {"counter_mass", "counter_distance"} & set(design):
+            return robot
+        current = self.design()
+        mass = jnp.asarray(design.get("counter_mass", current["counter_mass"]), dtype=float)
+        distance = jnp.asarray(
+            design.get("counter_distance", current["counter_distance"]), dtype=float
+        )
+        mass, distance = jnp.broadcast_to(mass, (4,)), jnp.broadcast_to(distance, (4,))
+        old_mass = current["counter_mass"]
+        about_own = self.counter_mass_inertia_about_base() - old_mass * current["counter_distance"] ** 2
+        inertia = about_own * mass / jnp.maximum(old_mass, 1e-12)
+        return eqx.tree_at(
+            lambda r: (r.m_cm, r.p_cm, r.inertia_cm, r.m_tun, r.tuning_scale),
+            robot,
+            (mass, distance, inertia, jnp.zeros(4), jnp.ones(4)),
+        )
+
+    # --- MuJoCo ---------------------------------------------------------------------
+
+    def mujoco_tree(self) -> Tree:
+        """Four RR arms from the base pivots, the platform on a planar joint, and the
+        loops closed by ``connect`` at C_i (arm i's link i2 end = platform end s_i·b)."""
+        a, b = float(self.a), float(self.b)
+        l1, l2 = np.asarray(self.l1, dtype=float), np.asarray(self.l2, dtype=float)
+        side, end = np.asarray(BASE_SIDE), np.asarray(PLATFORM_END)
+        bodies, connects = [], []
+        for i in range(4):
+            arm = i + 1
+            bodies += [
+                TreeBody(
+                    f"link{arm}1",
+                    None,
+                    pos=vec(side[i] * a, end[i] * b, 0.0),
+                    joints=(Joint(f"theta{arm}1", "hinge", Z),),
+                    visual_to=(float(l1[i]), 0, 0),
+                ),
+                TreeBody(f"counter_mass{arm}", f"link{arm}1"),
+                TreeBody(f"tuning_mass{arm}", f"link{arm}1"),
+                TreeBody(f"rotor{arm}", f"link{arm}1"),
+                TreeBody(
+                    f"link{arm}2",
+                    f"link{arm}1",
+                    pos=(float(l1[i]), 0, 0),
+                    joints=(Joint(f"theta{arm}2", "hinge", Z),),
+                    visual_to=(float(l2[i]), 0, 0),
+                ),
+            ]
+            connects.append(
+                Connect(f"link{arm}2", vec(l2[i], 0, 0), "platform", vec(0, end[i] * b, 0))
+            )
+        slides = (Joint("x5", "slide", (1.0, 0, 0)), Joint("y5", "slide", (0, 1.0, 0)))
+        bodies += [
+            TreeBody(
+                "platform", None, joints=slides + (Joint("theta5", "hinge", Z),), visual_to=(0, b, 0)
+            ),
+            TreeBody("payload", "platform"),
+        ]
+        return Tree(
+            bodies=tuple(bodies),
+            coordinates=_mujoco_coordinates,
+            connects=tuple(connects),
+            actuated=tuple(f"theta{i}1" for i in range(1, 5)),
+        )
 
     def jacobian(self, q) -> Float[Array, "4 3"]:
         """Eq (9): ``q̇_a = J u̇`` with ``q_a = (θ_11..θ_41)``, ``u = (x5, y5, θ5)``."""
@@ -291,6 +388,13 @@ class DualV(PlanarRobot):
         jh = self.jacobian(q) * jnp.array([1.0, 1.0, 1.0 / self.b])
         singular = jnp.linalg.svd(jh, compute_uv=False)
         return singular[0] / jnp.maximum(singular[-1], 1e-300)
+
+
+
+def _mujoco_coordinates(q):
+    """MuJoCo's ``qpos``: ``(θ_i1, θ_i2 − θ_i1)`` per arm, then ``(x5, y5, θ5)``."""
+    arms = jnp.stack([q[0:4], q[4:8] - q[0:4]], -1).reshape(-1)
+    return jnp.concatenate([arms, q[8:11]])
 
 
 def dual_v(

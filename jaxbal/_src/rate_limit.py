@@ -21,9 +21,9 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from jaxbal.planning import torque_rate_along
-from jaxbal.profiles import TrapezoidalAcceleration
-from jaxbal.robot import Robot
+from jaxbal._src.planning import torque_rate_along
+from jaxbal._src.profiles import TrapezoidalAcceleration
+from jaxbal._src.robot import Robot
 
 
 class RateLimitedPlan(NamedTuple):

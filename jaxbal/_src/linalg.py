@@ -62,3 +62,48 @@ def _cos_sin_jvp(primals, tangents):
     (angle,), (dangle,) = primals, tangents
     c, s = cos_sin(angle)
     return (c, s), (-s * dangle, c * dangle)
+
+
+def unit(angle):
+    """``(..., 2)`` unit vectors ``(cos θ, sin θ)`` of planar angles [rad]."""
+    return jnp.stack(cos_sin(angle), -1)
+
+
+def wrap(angle):
+    """Angles wrapped to ``(−π, π]`` [rad]."""
+    return jnp.arctan2(jnp.sin(angle), jnp.cos(angle))
+
+
+def skew(v):
+    """``(..., 3, 3)`` cross-product matrices ``[v]×`` of ``(..., 3)`` vectors."""
+    zero = jnp.zeros_like(v[..., 0])
+    return jnp.stack(
+        [
+            jnp.stack([zero, -v[..., 2], v[..., 1]], -1),
+            jnp.stack([v[..., 2], zero, -v[..., 0]], -1),
+            jnp.stack([-v[..., 1], v[..., 0], zero], -1),
+        ],
+        -2,
+    )
+
+
+def two_link_ik(target, l1, l2, sign):
+    """Closed-form inverse kinematics of a planar two-link chain from the origin.
+
+    Args:
+        target: ``(2,)`` position of the chain's tip [m].
+        l1, l2: link lengths [m].
+        sign: ``±1``, the sign of ``sin q2`` (elbow branch).
+
+    Returns:
+        ``(q1, q2, valid)``: the absolute angle of link 1 and the relative angle of
+        link 2 [rad] (finite even when ``valid`` is False: the target is then out of
+        reach and the angles are those of the nearest boundary configuration).
+    """
+    x, y = target[0], target[1]
+    cos_q2 = (x**2 + y**2 - l1**2 - l2**2) / (2.0 * l1 * l2)
+    valid = (jnp.abs(cos_q2) <= 1.0) & jnp.isfinite(cos_q2)
+    cos_q2 = jnp.where(jnp.isfinite(cos_q2), cos_q2, 0.0)
+    q2 = sign * jnp.arccos(jnp.clip(cos_q2, -1.0 + 1e-15, 1.0 - 1e-15))
+    q1 = jnp.arctan2(y, x) - jnp.arctan2(l2 * jnp.sin(q2), l1 + l2 * jnp.cos(q2))
+    return q1, q2, valid

@@ -1,0 +1,60 @@
+"""Actuator torques/forces of any robot, serial or parallel, from Lagrange's equations.
+
+For a serial robot every coordinate is actuated and ``τ = Q``, the generalised forces
+of :func:`jaxbal.inverse_dynamics`. For a parallel robot ``q`` holds all coordinates,
+tied by the loop closures ``Φ(q) = 0``; with ``N`` a basis of the velocities that keep
+the loops closed (``Φ_q N = 0``, ``N`` = identity on the independent coordinates) the
+principle of virtual work gives ``N_aᵀ τ = Nᵀ Q`` (``N_a``: the rows of the actuated
+coordinates). With actuation redundancy (the DUAL-V) the minimum-norm solution is
+returned; other distributions differ by an internal preload in ``null(N_aᵀ)``.
+
+References:
+    van der Wijk et al. (2013), eqs (3)-(11) (pseudo-inverse distribution);
+    Corbel et al. (2010).
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxbal._src.dynamics import inverse_dynamics
+from jaxbal._src.robot import Robot
+from jaxbal._src.types import Array, Coordinates, Float, Vec3
+
+
+def velocity_basis(robot: Robot, q: Coordinates) -> Float[Array, "dof m"]:
+    """``N (dof, m)``: ``q̇ = N u̇`` for the ``m`` independent coordinates ``u``
+    (``Φ_q N = 0``, ``N[independent] = I``). Identity for a serial robot."""
+    dof, independent = robot.dof, np.asarray(robot.independent)
+    phi_q = jax.jacfwd(robot.constraint)(q)
+    if phi_q.shape[0] == 0:
+        return jnp.eye(dof)
+    dependent = np.setdiff1d(np.arange(dof), independent)
+    if phi_q.shape[0] != dependent.size:
+        raise ValueError(
+            f"{type(robot).__name__}: {phi_q.shape[0]} loop closures for {dependent.size} "
+            "dependent coordinates (they must match)"
+        )
+    solved = -jnp.linalg.solve(phi_q[:, dependent], phi_q[:, independent])
+    basis = jnp.zeros((dof, independent.size))
+    basis = basis.at[independent].set(jnp.eye(independent.size))
+    return basis.at[dependent].set(solved)
+
+
+def actuator_torques(
+    robot: Robot, q: Coordinates, qd: Coordinates, qdd: Coordinates, gravity: Vec3 | None = None
+) -> Float[Array, " a"]:
+    """Actuator torques/forces ``(a,)`` [N·m or N] that drive the state ``(q, q̇, q̈)``.
+
+    Minimum-norm over the actuators when they are redundant (see the module doc).
+    One sample; batch with ``jax.vmap``.
+    """
+    forces = inverse_dynamics(robot, q, qd, qdd, gravity)
+    actuated = np.asarray(robot.actuated)
+    if jax.eval_shape(robot.constraint, q).shape[0] == 0:
+        return forces[actuated]
+    basis = velocity_basis(robot, q)
+    a = basis[actuated].T  # (m, a)
+    return a.T @ jnp.linalg.solve(a @ a.T, basis.T @ forces)

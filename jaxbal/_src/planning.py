@@ -1,0 +1,198 @@
+"""Centre-of-mass (COM) motion planning and evaluation along planned motions.
+
+The shaking force of any robot is ``f_sh = −m_tot ẍ_S`` (Briot et al. 2012, eq 1), so
+it is smallest when the total COM ``x_S`` moves on the straight line between its
+start and end positions with the profile of least peak acceleration -- bang-bang for a
+fixed duration (eqs 3-4), or a trapezoidal acceleration when the actuators' torque
+rates are bounded (eqs 5-6). The joint motion then follows from the robot's COM
+inverse kinematics; for redundant cases (3R) the free coordinates follow their own
+law (eqs 19-20).
+
+Every trajectory here is an :class:`equinox.Module` mapping time ``t`` [s] to the
+robot's coordinates ``q``; feed it to :func:`jaxbal.trajectory.sample` for exact
+``q, q̇, q̈, q⃛`` (or to :func:`jaxbal.joint_motion`, which also checks loop closures).
+Every robot takes part through its contract: ``inverse_kinematics(pose, branch=…)``
+and ``end_effector(q)``; the COM inverse kinematics is the robot's closed form where it
+has one, else Newton on the pose (:func:`com_inverse_kinematics`).
+
+References:
+    Briot, Arakelian & Le Baron (2012), sections 2.1-2.3.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from jaxbal._src.com_ik import com_inverse_kinematics
+from jaxbal._src.dynamics import inverse_dynamics, inverse_dynamics_rate
+from jaxbal._src.momentum import center_of_mass, shaking_wrench
+from jaxbal._src.planar import PlanarRobot
+from jaxbal._src.profiles import Profile
+from jaxbal._src.robot import Robot
+from jaxbal._src.trajectory import StraightLine, sample
+from jaxbal._src.types import Array, Float, ScalarLike
+
+
+class EndEffectorLine(eqx.Module):
+    """Joint motion that moves the end-effector on a straight line (classical planning).
+
+    ``q(t) = IK(x_E0 + s(t/T)(x_Ef − x_E0))``. For the 3R the pose includes φ, so the
+    orientation follows the same profile (case 1 of Briot et al. 2012).
+    """
+
+    robot: Robot
+    line: StraightLine
+    branch: tuple[int, ...] | int | None = eqx.field(static=True, default=None)
+
+    def __call__(self, t: ScalarLike):
+        return self.robot.inverse_kinematics(self.line(t), branch=self.branch)
+
+
+class ComLine(eqx.Module):
+    """Joint motion that moves the total COM on a straight line with a given profile.
+
+    Attributes:
+        robot: the robot (its parameters are leaves: the plan follows them).
+        line: the COM path, a :class:`~jaxbal.trajectory.StraightLine` in the plane
+            (``(2,)`` endpoints) or in space (``(3,)``).
+        free: ``None``, or a callable ``t ↦`` free coordinates (φ for the 3R).
+        branch: working mode of the COM inverse kinematics (``+1`` = "+" of eq 10).
+        poses: optional straight line of end-effector poses between the same
+            configurations: for robots solved numerically it gives Newton's initial
+            guess and, when ``free`` is None, the free pose components.
+    """
+
+    robot: Robot
+    line: StraightLine
+    free: Callable | None = None
+    branch: tuple[int, ...] | int | None = eqx.field(static=True, default=None)
+    poses: StraightLine | None = None
+
+    def _solve(self, t, return_valid):
+        com = self.line(t)
+        free = None if self.free is None else self.free(t)
+        guess = None
+        if self.poses is not None and getattr(self.robot, "com_inverse_kinematics", None) is None:
+            pose = self.poses(t)
+            guess = pose[: com.shape[0]]
+            free = pose[com.shape[0] :] if free is None else free
+        return com_inverse_kinematics(
+            self.robot, com, free, branch=self.branch, return_valid=return_valid, guess=guess
+        )
+
+    def __call__(self, t: ScalarLike):
+        return self._solve(t, False)
+
+    def valid(self, times: Float[Array, " t"]) -> Float[Array, " t"]:
+        """Boolean mask: is the COM target reachable at each time (no exception)."""
+        return jax.vmap(lambda t: self._solve(t, True)[1])(jnp.asarray(times, dtype=float))
+
+
+def com_line(
+    robot: Robot,
+    q_start,
+    q_end,
+    profile: Profile,
+    duration: ScalarLike,
+    free: Callable | None = None,
+    branch=None,
+    dims: int | None = None,
+) -> ComLine:
+    """The COM plan between two configurations (eq 3): the COM goes straight from
+    ``x_S(q_start)`` to ``x_S(q_end)`` with ``profile`` in ``duration`` seconds.
+
+    ``dims``: 2 (planar COM) or 3; default 2 for a
+    :class:`~jaxbal._src.planar.PlanarRobot`, else 3. Any robot: where it has no closed
+    form COM IK, the pose components beyond ``dims`` follow the straight line between
+    the end-effector poses of ``q_start`` and ``q_end`` (unless ``free`` is given).
+    """
+    if dims is None:
+        dims = 2 if isinstance(robot, PlanarRobot) else 3
+    q_start, q_end = (jnp.asarray(q, dtype=float) for q in (q_start, q_end))
+    start = center_of_mass(robot, q_start)[:dims]
+    end = center_of_mass(robot, q_end)[:dims]
+    poses = StraightLine(robot.end_effector(q_start), robot.end_effector(q_end), profile, duration)
+    return ComLine(robot, StraightLine(start, end, profile, duration), free, branch, poses)
+
+
+@eqx.filter_jit
+def wrench_along(
+    robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
+) -> tuple[Float[Array, "t 3"], Float[Array, "t 3"]]:
+    """Shaking force ``(t, 3)`` [N] and moment ``(t, 3)`` [N·m] along a trajectory.
+
+    Compiled (``eqx.filter_jit``): a boundary function. It recompiles only when the
+    structure of ``robot``/``path`` changes (a new Python callable inside ``path``
+    counts as a new structure), not for new parameter values.
+    """
+    q, qd, qdd = sample(path, times, order=2)
+    return jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c, gravity))(q, qd, qdd)
+
+
+@eqx.filter_jit
+def torques_along(
+    robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
+) -> Float[Array, "t dof"]:
+    """Actuator torques ``τ`` ``(t, dof)`` [N·m] along a trajectory (serial arms)."""
+    q, qd, qdd = sample(path, times, order=2)
+    return jax.vmap(lambda a, b, c: inverse_dynamics(robot, a, b, c, gravity))(q, qd, qdd)
+
+
+@eqx.filter_jit
+def torque_rate_along(
+    robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
+) -> Float[Array, "t dof"]:
+    """Actuator torque rates ``dτ/dt`` ``(t, dof)`` [N·m/s] along a trajectory (serial arms)."""
+    q, qd, qdd, qddd = sample(path, times, order=3)
+    return jax.vmap(lambda a, b, c, d: inverse_dynamics_rate(robot, a, b, c, d, gravity))(
+        q, qd, qdd, qddd
+    )
+
+
+def peak_norm(vectors: Float[Array, "t 3"]) -> Float[Array, ""]:
+    """``max_t ‖v(t)‖`` (e.g. the maximal shaking force of the papers' tables).
+
+    Differentiable everywhere: the norm uses the double-``where`` trick so that an
+    instant with ``v = 0`` (rest at the ends of a move) gives a zero, not NaN, gradient.
+    """
+    squared = jnp.sum(vectors**2, axis=-1)
+    positive = squared > 0.0
+    norms = jnp.where(positive, jnp.sqrt(jnp.where(positive, squared, 1.0)), 0.0)
+    return jnp.max(norms)
+
+
+def smooth_peak(values: Float[Array, " t"], temperature: ScalarLike) -> Float[Array, ""]:
+    """Differentiable upper bound of ``max|values|``: ``τ·logsumexp(|v|/τ)``.
+
+    Tends to the maximum as ``temperature τ → 0`` (error ≤ τ·log t); used to optimise
+    trajectory parameters against a peak (e.g. eq 19 of Briot et al. 2012).
+    """
+    magnitude = jnp.abs(values)
+    return temperature * jax.nn.logsumexp(magnitude / temperature)
+
+
+def shaking_peaks(robot: Robot, trajectory, times, reference=None, gravity=None):
+    """Peak shaking force and moment of ``robot`` along ``trajectory``, the moment taken
+    about any ``reference`` point (e.g. Geng et al. 2021, Tables 1-4).
+
+    Args:
+        robot: the robot *as executed* (true masses and payload); the trajectory may
+            have been planned with another one (e.g. a payload error).
+        trajectory: callable ``t -> q``, e.g. :class:`jaxbal.planning.ComLine`.
+        times: ``(t,)`` sampling instants [s].
+        reference: ``(3,)`` point about which the moment is taken [m] (default: the
+            base origin).
+        gravity: optional ``(3,)`` gravity [m/s²] (default none).
+
+    Returns:
+        ``(max_t |F_sh| [N], max_t |M_sh| [N·m])``, differentiable (zero-safe norms).
+        The moment about ``c`` is ``M_O − c × F``.
+    """
+    force, moment = wrench_along(robot, trajectory, times, gravity)
+    if reference is not None:
+        moment = moment - jnp.cross(jnp.asarray(reference, dtype=float), force)
+    return peak_norm(force), peak_norm(moment)

@@ -1,0 +1,131 @@
+"""Motion profiles ``s(u)`` on normalised time ``u = t/T ∈ [0, 1]``, with s(0)=0, s(1)=1.
+
+Profiles are :class:`equinox.Module` pytrees whose parameters (switch times,
+polynomial coefficients) are differentiable leaves. Derivatives with respect to
+``u`` come from autodiff; each profile is written so that its derivatives are exact
+and *right-continuous* at switching instants (the acceleration of a bang-bang profile
+at ``u = 1/2`` is the decelerating value).
+
+Peak accelerations for a displacement ``S`` in time ``T`` (closed forms, tested):
+
+* quintic ``10u³ − 15u⁴ + 6u⁵``: ``10 S / (√3 T²)``;
+* bang-bang: ``4 S / T²`` (time-optimal for a bounded acceleration).
+
+References:
+    Briot, Arakelian & Le Baron (2012), eqs (2)-(6) and Fig 1; Khalil & Dombre (2002).
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from jaxbal._src.types import Array, Float, Scalar, ScalarLike
+
+
+def _ramp_power(x, power: int):
+    """``max(x, 0)**power / power!`` written with ``where`` so all its u-derivatives are
+    exact and right-continuous at ``x = 0``."""
+    factorial = {0: 1.0, 1: 1.0, 2: 2.0, 3: 6.0}[power]
+    positive = x >= 0
+    safe = jnp.where(positive, x, 0.0)
+    return jnp.where(positive, safe**power / factorial, 0.0)
+
+
+class Profile(eqx.Module):
+    """Base class: ``profile(u)`` returns ``s(u)``, dimensionless."""
+
+    def __call__(self, u: ScalarLike) -> Scalar:
+        raise NotImplementedError
+
+
+class Quintic(Profile):
+    """Fifth-order polynomial ``10u³ − 15u⁴ + 6u⁵`` (zero velocity and acceleration at
+    both ends). Briot et al. (2012), case 1."""
+
+    def __call__(self, u):
+        u = jnp.asarray(u, dtype=float)
+        return u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
+
+
+class BangBang(Profile):
+    """Bang-bang acceleration: ``s'' = +4`` for ``u < 1/2``, ``−4`` after.
+
+    References: Briot et al. (2012), eqs (3)-(4), Fig 1a.
+    """
+
+    def __call__(self, u):
+        u = jnp.asarray(u, dtype=float)
+        return 4.0 * (_ramp_power(u, 2) - 2.0 * _ramp_power(u - 0.5, 2))
+
+
+class TrapezoidalAcceleration(Profile):
+    """Trapezoidal acceleration (Fig 1b of Briot et al. 2012), symmetric about ``u = 1/2``.
+
+    The acceleration rises linearly from 0 to ``+a`` on ``[0, u1]``, stays at ``+a`` on
+    ``[u1, u2]``, goes linearly to ``−a`` on ``[u2, 1 − u2]``, stays at ``−a`` on
+    ``[1 − u2, 1 − u1]`` and returns to 0 at ``u = 1``. ``a`` is fixed by ``s(1) = 1``.
+    Bang-bang is the limit ``u1 → 0, u2 → 1/2``.
+
+    Attributes:
+        u1: first switch time as a fraction of the duration, ``0 < u1 ≤ u2``.
+        u2: second switch time as a fraction of the duration, ``u2 < 1/2``.
+
+    The jerk is piecewise constant, so actuator torque *rates* stay bounded, which is
+    what eq (6) of the paper needs.
+    """
+
+    u1: Float[Array, ""]
+    u2: Float[Array, ""]
+
+    def __init__(self, u1: ScalarLike, u2: ScalarLike):
+        self.u1 = jnp.asarray(u1, dtype=float)
+        self.u2 = jnp.asarray(u2, dtype=float)
+
+    def _shape(self, u):
+        u1, u2 = self.u1, self.u2
+        half_gap = jnp.maximum(1.0 - 2.0 * u2, 1e-12)
+        knots = jnp.stack([jnp.zeros_like(u1), u1, u2, 1.0 - u2, 1.0 - u1])
+        slope_jumps = jnp.stack([1.0 / u1, -1.0 / u1, -2.0 / half_gap, 2.0 / half_gap, 1.0 / u1])
+        return jnp.sum(slope_jumps * _ramp_power(u - knots, 3))
+
+    def __call__(self, u):
+        u = jnp.asarray(u, dtype=float)
+        return self._shape(u) / self._shape(jnp.asarray(1.0))
+
+    @property
+    def peak_acceleration(self) -> Scalar:
+        """Peak ``|s''|`` (the plateau value ``a``) for unit displacement and duration."""
+        return 1.0 / self._shape(jnp.asarray(1.0))
+
+
+class BoundaryPolynomial(Profile):
+    """Polynomial with ``s(0)=0, s(1)=1`` and zero velocity and acceleration at both ends.
+
+    ``s(u) = 10u³ − 15u⁴ + 6u⁵ + u³(1 − u)³ Σ_k c_k u^k``; with ``K ≥ 1`` free
+    coefficients its degree is ``5 + K``. Every choice of
+    ``c`` satisfies the six boundary conditions, so the coefficients can be optimised
+    freely. Degree 8 (``K = 3``) is the free-angle law of Briot et al. (2012), eqs (19)-(20).
+    """
+
+    coefficients: Float[Array, " k"]
+
+    def __init__(self, coefficients):
+        self.coefficients = jnp.atleast_1d(jnp.asarray(coefficients, dtype=float))
+
+    @property
+    def degree(self) -> int:
+        return 5 + max(self.coefficients.shape[0], 1)
+
+    def __call__(self, u):
+        u = jnp.asarray(u, dtype=float)
+        # Horner's scheme: no u**0 whose derivative at u = 0 would be 0·∞ = NaN.
+        bump = (u * (1.0 - u)) ** 3 * jnp.polyval(self.coefficients[::-1], u)
+        return Quintic()(u) + bump
+
+
+def polynomial_of_degree(degree: int) -> BoundaryPolynomial:
+    """A :class:`BoundaryPolynomial` of the given degree (≥ 6), initialised to the quintic."""
+    if degree < 6:
+        raise ValueError(f"degree must be >= 6 for free coefficients, got {degree}")
+    return BoundaryPolynomial(jnp.zeros(degree - 5))

@@ -1,0 +1,1 @@
+"""Design sensitivities for every robot (placeholder: see jaxbal._src.sensitivity)."""
