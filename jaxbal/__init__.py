@@ -11,6 +11,7 @@ Importing jaxbal enables float64 in JAX (see :mod:`jaxbal._src.config`).
 
 import importlib
 
+from jaxbal import design, planning, profiles, robots, sensitivity  # noqa: E402, I001
 from jaxbal._src import config as _config  # noqa: F401  (enables float64 once)
 from jaxbal._src.actuation import actuator_torques, velocity_basis
 from jaxbal._src.dynamics import (
@@ -38,8 +39,6 @@ from jaxbal._src.motion import (
 from jaxbal._src.optimize import Solution, minimize
 from jaxbal._src.robot import Bodies, Robot
 from jaxbal._src.trajectory import StraightLine, sample, sample_times, time_derivatives
-
-from jaxbal import design, planning, profiles, robots, sensitivity  # noqa: E402, I001
 
 __version__ = "0.2.0"
 

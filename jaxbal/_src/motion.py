@@ -84,7 +84,9 @@ def joint_motion(
     valid = state_valid(robot, q, qd, qdd)
     if return_valid:
         return q, qd, qdd, valid
-    raise_if_invalid(valid, f"trajectory leaves the loop closures of {type(robot).__name__} at t", t)
+    raise_if_invalid(
+        valid, f"trajectory leaves the loop closures of {type(robot).__name__} at t", t
+    )
     return q, qd, qdd
 
 

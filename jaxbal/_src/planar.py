@@ -30,6 +30,8 @@ from jaxbal._src.types import Array, Coordinates, Float, Vec3
 class PlanarRobot(Robot):
     """A robot whose bodies move in the x-y plane and rotate about z."""
 
+    com_dims = 2
+
     @abc.abstractmethod
     def planar_frames(self, q: Coordinates) -> tuple[Float[Array, "n 2"], Float[Array, " n"]]:
         """Body-frame origins in the plane ``(n, 2)`` [m] and body angles ``(n,)`` [rad]."""

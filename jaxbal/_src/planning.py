@@ -30,7 +30,6 @@ import jax.numpy as jnp
 from jaxbal._src.com_ik import com_inverse_kinematics
 from jaxbal._src.dynamics import inverse_dynamics, inverse_dynamics_rate
 from jaxbal._src.momentum import center_of_mass, shaking_wrench
-from jaxbal._src.planar import PlanarRobot
 from jaxbal._src.profiles import Profile
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import StraightLine, sample
@@ -62,8 +61,8 @@ class ComLine(eqx.Module):
         free: ``None``, or a callable ``t ↦`` free coordinates (φ for the 3R).
         branch: working mode of the COM inverse kinematics (``+1`` = "+" of eq 10).
         poses: optional straight line of end-effector poses between the same
-            configurations: for robots solved numerically it gives Newton's initial
-            guess and, when ``free`` is None, the free pose components.
+            configurations: when ``free`` is None, the pose components beyond the COM's
+            follow it, and for robots solved numerically it gives Newton's start.
     """
 
     robot: Robot
@@ -76,10 +75,13 @@ class ComLine(eqx.Module):
         com = self.line(t)
         free = None if self.free is None else self.free(t)
         guess = None
-        if self.poses is not None and getattr(self.robot, "com_inverse_kinematics", None) is None:
+        if self.poses is not None:
             pose = self.poses(t)
-            guess = pose[: com.shape[0]]
-            free = pose[com.shape[0] :] if free is None else free
+            d = com.shape[0]
+            if free is None and pose.shape[0] > d:
+                free = pose[d:]  # e.g. φ of the 3R, θ5 of the DUAL-V
+            if getattr(self.robot, "com_inverse_kinematics", None) is None:
+                guess = pose[:d]  # Newton's start for robots solved numerically
         return com_inverse_kinematics(
             self.robot, com, free, branch=self.branch, return_valid=return_valid, guess=guess
         )
@@ -105,13 +107,12 @@ def com_line(
     """The COM plan between two configurations (eq 3): the COM goes straight from
     ``x_S(q_start)`` to ``x_S(q_end)`` with ``profile`` in ``duration`` seconds.
 
-    ``dims``: 2 (planar COM) or 3; default 2 for a
-    :class:`~jaxbal._src.planar.PlanarRobot`, else 3. Any robot: where it has no closed
-    form COM IK, the pose components beyond ``dims`` follow the straight line between
-    the end-effector poses of ``q_start`` and ``q_end`` (unless ``free`` is given).
+    ``dims``: 2 (planar COM) or 3; default ``robot.com_dims``. The pose components
+    beyond ``dims`` (φ of the 3R, θ5 of the DUAL-V, φ and z of the SCARA) follow the
+    straight line between the end-effector poses of ``q_start`` and ``q_end``, unless
+    ``free`` is given.
     """
-    if dims is None:
-        dims = 2 if isinstance(robot, PlanarRobot) else 3
+    dims = robot.com_dims if dims is None else dims
     q_start, q_end = (jnp.asarray(q, dtype=float) for q in (q_start, q_end))
     start = center_of_mass(robot, q_start)[:dims]
     end = center_of_mass(robot, q_end)[:dims]

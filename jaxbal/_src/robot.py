@@ -140,6 +140,8 @@ class Robot(eqx.Module):
     design_fields: ClassVar[dict[str, str]] = {}
     #: number of ±1 signs of the inverse-kinematics branch.
     branch_size: ClassVar[int] = 1
+    #: dimension of the COM that planning steers (2: x, y of a planar motion; 3: x, y, z).
+    com_dims: ClassVar[int] = 3
 
     @abc.abstractmethod
     def mass_properties(self) -> Bodies:
@@ -260,9 +262,7 @@ class Robot(eqx.Module):
             check_shape(f"design[{name!r}]", value, jnp.shape(current[name]))
             values.append(value)
         fields = [self.design_fields[name] for name in names]
-        return eqx.tree_at(
-            lambda r: tuple(getattr(r, f) for f in fields), self, tuple(values)
-        )
+        return eqx.tree_at(lambda r: tuple(getattr(r, f) for f in fields), self, tuple(values))
 
     def design_lower_bounds(self) -> dict[str, float]:
         """Lower bound of each design variable (masses and distances: 0)."""

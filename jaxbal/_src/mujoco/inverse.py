@@ -45,9 +45,9 @@ import numpy as np
 with contextlib.redirect_stdout(io.StringIO()):  # MJX prints "Failed to import warp" (harmless)
     from mujoco import mjx
 
+from jaxbal._src.momentum import shaking_wrench
 from jaxbal._src.mujoco.mjcf import BASE_MASS, mujoco_inertials, to_mjcf
 from jaxbal._src.mujoco.tree import Tree, tree_state
-from jaxbal._src.momentum import shaking_wrench
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Coordinates, Vec3
 from jaxbal._src.validation import check_shape

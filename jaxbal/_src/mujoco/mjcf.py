@@ -30,7 +30,6 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from typing import NamedTuple
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 

@@ -119,6 +119,7 @@ class Tree(NamedTuple):
     def joint_names(self) -> tuple[str, ...]:
         return tuple(j.name for b in self.bodies for j in b.joints)
 
+
 def _quat_mul(a, b):
     w1, v1 = a[0], a[1:]
     w2, v2 = b[0], b[1:]
@@ -187,7 +188,6 @@ def matrix_to_quat(rotation):
     return quat * jnp.sign(quat[0] + (quat[0] == 0))
 
 
-
 def minimal_rotation_quat(a, d):
     """Unit quaternion of the rotation about ``a × d`` taking unit ``a`` onto ``d``."""
     d = d / jnp.linalg.norm(d)
@@ -195,7 +195,7 @@ def minimal_rotation_quat(a, d):
     return quat / jnp.linalg.norm(quat)
 
 
-def prescribed_tree(robot: Robot) -> Tree:
+def prescribed_tree(robot) -> Tree:
     """Generic tree: every jaxbal body on 3 world slides + a ball joint under the base.
 
     Less independent than a registered tree: the kinematics (poses, velocities,

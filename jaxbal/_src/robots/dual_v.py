@@ -317,7 +317,9 @@ class DualV(PlanarRobot):
         )
         mass, distance = jnp.broadcast_to(mass, (4,)), jnp.broadcast_to(distance, (4,))
         old_mass = current["counter_mass"]
-        about_own = self.counter_mass_inertia_about_base() - old_mass * current["counter_distance"] ** 2
+        about_own = (
+            self.counter_mass_inertia_about_base() - old_mass * current["counter_distance"] ** 2
+        )
         inertia = about_own * mass / jnp.maximum(old_mass, 1e-12)
         return eqx.tree_at(
             lambda r: (r.m_cm, r.p_cm, r.inertia_cm, r.m_tun, r.tuning_scale),
@@ -361,7 +363,10 @@ class DualV(PlanarRobot):
         slides = (Joint("x5", "slide", (1.0, 0, 0)), Joint("y5", "slide", (0, 1.0, 0)))
         bodies += [
             TreeBody(
-                "platform", None, joints=slides + (Joint("theta5", "hinge", Z),), visual_to=(0, b, 0)
+                "platform",
+                None,
+                joints=slides + (Joint("theta5", "hinge", Z),),
+                visual_to=(0, b, 0),
             ),
             TreeBody("payload", "platform"),
         ]
@@ -388,7 +393,6 @@ class DualV(PlanarRobot):
         jh = self.jacobian(q) * jnp.array([1.0, 1.0, 1.0 / self.b])
         singular = jnp.linalg.svd(jh, compute_uv=False)
         return singular[0] / jnp.maximum(singular[-1], 1e-300)
-
 
 
 def _mujoco_coordinates(q):

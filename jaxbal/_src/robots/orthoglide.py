@@ -54,8 +54,8 @@ import numpy as np
 
 from jaxbal._src.implicit import newton_solve
 from jaxbal._src.linalg import skew
-from jaxbal._src.mujoco.tree import Connect, Joint, Tree, TreeBody, minimal_rotation_quat, vec
 from jaxbal._src.momentum import center_of_mass
+from jaxbal._src.mujoco.tree import Connect, Joint, Tree, TreeBody, minimal_rotation_quat, vec
 from jaxbal._src.planning import EndEffectorLine, com_line
 from jaxbal._src.profiles import BangBang, Quintic
 from jaxbal._src.robot import Bodies, Robot, concatenate, point_masses

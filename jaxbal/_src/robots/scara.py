@@ -89,6 +89,7 @@ class Scara(Robot):
             (default 0: no counterweight).
     """
 
+    com_dims = 2  # COM planning steers the horizontal COM (φ and z follow the pose line)
     design_fields = {
         "counter_mass": "counter_masses",
         "counter_distance": "counter_distances",

@@ -1,0 +1,364 @@
+"""Counter-mass co-design of any robot: optimise its design variables for a fixed motion.
+
+:func:`codesign` minimises a weighted sum of metrics (:mod:`jaxbal._src.metrics`) over
+the robot's named design variables (:meth:`jaxbal.Robot.design`) with optax L-BFGS
+(:func:`jaxbal.minimize`). The joint motion is *held fixed* (sequential design, as in
+the papers: counter-masses do not change the inverse kinematics).
+
+**Loss.** With metric values ``v_i``, weights ``w_i`` and scales ``s_i``::
+
+    loss = Σ_i w_i (v_i / s_i)²  +  P Σ_j max(0, (c_j − b_j) / σ_j)²
+
+``s_i`` is the value of metric ``i`` for the starting robot, floored (an added mass or
+inertia that starts at zero is scaled by the bare robot's total mass or base inertia;
+any other metric by ``1e-12`` SI units), so every term is dimensionless. The terms are
+*squared* so that a metric that can reach zero (the RMS force of a robot that can be
+fully force-balanced) is smooth there; with one term the loss has the same minimiser
+as the metric itself. The optional constraints ``c_j ≤ b_j`` are a quadratic penalty
+of weight ``P = penalty`` (default :data:`CONSTRAINT_PENALTY`), scaled by ``σ_j`` =
+``|b_j|`` floored as above; a penalty is inexact, so a constraint counts as satisfied
+within the relative tolerance :data:`FEASIBILITY_RTOL`.
+
+**Bounds** are a smooth reparametrisation, so L-BFGS stays unconstrained:
+``x = lower + r²`` below only and ``x = lower + (upper − lower) sin² r`` with both.
+``r = 0`` is a stationary point of ``r²`` (and of ``sin² r``): a variable that starts
+*at* a bound could never leave it, so the optimiser starts :data:`START_OFFSET` above
+the lower bound (SI units, i.e. 0.1 g or 0.1 mm) and, for two-sided bounds, that
+fraction of the range inside both ends. The optimiser may still reach a bound exactly.
+
+**Compilation.** The loss is a module-level function of ``(params, robot, motion,
+problem)``; names, metric choices and bound kinds are static fields of ``problem``, all
+numbers are array leaves. A second call on a robot of the same structure, with a motion
+of the same length and the same metric objects, reuses the compiled L-BFGS loop
+(different payloads, masses, weights, bounds or motions do not retrace). A metric given
+as a callable is part of the compiled structure: define it once, at module level.
+
+References:
+    Arakelian & Briot (2008), eqs (1)-(3) (the force-balanced SCARA this recovers);
+    Briot, Arakelian & Le Baron (2012), §3.3 (counterweights of the 2R and 3R);
+    Liu & Nocedal (1989), L-BFGS.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, NamedTuple
+
+import equinox as eqx
+import jax.numpy as jnp
+import numpy as np
+
+from jaxbal._src.metrics import (
+    ADDED_MASS_VARIABLES,
+    Metric,
+    Motion,
+    as_motion,
+    base_inertia,
+    check_design_names,
+    finite_array,
+    metric_name,
+    resolve_metric,
+)
+from jaxbal._src.momentum import total_mass
+from jaxbal._src.optimize import minimize
+from jaxbal._src.robot import Robot
+from jaxbal._src.types import Array, Scalar
+
+__all__ = [
+    "CONSTRAINT_PENALTY",
+    "FEASIBILITY_RTOL",
+    "START_OFFSET",
+    "DesignSolution",
+    "codesign",
+]
+
+#: distance [SI units of the variable] that a variable starting at its lower bound is
+#: moved inside, so that its square-root parameter is not at a stationary point.
+START_OFFSET = 1e-4
+#: default weight ``P`` of the quadratic constraint penalty (dimensionless).
+CONSTRAINT_PENALTY = 1e4
+#: a constraint ``c ≤ b`` is reported satisfied when ``c ≤ b + FEASIBILITY_RTOL·σ``.
+FEASIBILITY_RTOL = 1e-3
+#: floor of the scale of a metric other than the added mass and inertia [SI].
+SCALE_FLOOR = 1e-12
+
+
+class DesignSolution(NamedTuple):
+    """Result of :func:`codesign`.
+
+    Attributes:
+        design: every design variable of the optimised robot (name -> array, SI).
+        robot: the optimised robot.
+        value: final loss (dimensionless, see the module doc).
+        initial_value: loss of the starting design.
+        metrics: name -> ``(before, after)`` value of each objective and constraint
+            metric [SI units].
+        constraints: name -> ``(value, bound)`` after optimisation [SI units].
+        feasible: every constraint satisfied (within :data:`FEASIBILITY_RTOL`).
+        converged: the gradient norm reached ``gtol``.
+        steps: L-BFGS iterations done.
+        grad_norm: final gradient norm (with respect to the bound parameters ``r``).
+        history: ``(max_steps,)`` loss at every iteration (NaN after stopping).
+    """
+
+    design: dict[str, Array]
+    robot: Robot
+    value: Scalar
+    initial_value: Scalar
+    metrics: dict[str, tuple[Scalar, Scalar]]
+    constraints: dict[str, tuple[Scalar, Scalar]]
+    feasible: Array
+    converged: Array
+    steps: Array
+    grad_norm: Scalar
+    history: Array
+
+
+class _Problem(eqx.Module):
+    """Everything the loss needs besides the parameters, robot and motion: names and
+    metric choices static (part of the compiled structure), numbers as array leaves."""
+
+    free: tuple[str, ...] = eqx.field(static=True)
+    two_sided: tuple[bool, ...] = eqx.field(static=True)
+    terms: tuple[Any, ...] = eqx.field(static=True)
+    constrained: tuple[Any, ...] = eqx.field(static=True)
+    lower: tuple[Array, ...]
+    upper: tuple[Array, ...]
+    weights: Array
+    scales: Array
+    bounds: Array
+    bound_scales: Array
+    penalty: Array
+
+
+def _to_design(params: dict[str, Array], problem: _Problem) -> dict[str, Array]:
+    """The bounded design variables from the unconstrained parameters ``r``."""
+    design = {}
+    for name, two, lo, hi in zip(
+        problem.free, problem.two_sided, problem.lower, problem.upper, strict=True
+    ):
+        r = params[name]
+        design[name] = lo + (hi - lo) * jnp.sin(r) ** 2 if two else lo + r**2
+    return design
+
+
+def _to_params(design: Mapping[str, np.ndarray], problem: _Problem) -> dict[str, Array]:
+    """Parameters ``r`` of a design, moved :data:`START_OFFSET` inside the bounds."""
+    params = {}
+    for name, two, lo, hi in zip(
+        problem.free, problem.two_sided, problem.lower, problem.upper, strict=True
+    ):
+        lo, hi, x = np.asarray(lo), np.asarray(hi), np.asarray(design[name], dtype=float)
+        if two:
+            span = hi - lo
+            inset = np.minimum(START_OFFSET / span, 0.25)
+            fraction = np.clip((x - lo) / span, inset, 1.0 - inset)
+            params[name] = jnp.asarray(np.arcsin(np.sqrt(fraction)))
+        else:
+            params[name] = jnp.asarray(np.sqrt(np.maximum(x - lo, START_OFFSET)))
+    return params
+
+
+def _values(robot: Robot, motion: Motion, metrics: tuple) -> Array:
+    return jnp.stack([jnp.asarray(resolve_metric(m)(robot, motion)) for m in metrics])
+
+
+def _combine(values: Array, constrained: Array, problem: _Problem) -> Scalar:
+    """The loss from the metric values of the objective terms and of the constraints."""
+    loss = jnp.sum(problem.weights * (values / problem.scales) ** 2)
+    if problem.constrained:
+        excess = jnp.maximum((constrained - problem.bounds) / problem.bound_scales, 0.0)
+        loss = loss + problem.penalty * jnp.sum(excess**2)
+    return loss
+
+
+def design_loss(params: dict[str, Array], robot: Robot, motion: Motion, problem: _Problem):
+    """The co-design loss (module doc) at the parameters ``r`` (module level: the
+    compiled L-BFGS loop of :func:`jaxbal.minimize` is cached on its identity)."""
+    candidate = robot.with_design(_to_design(params, problem))
+    values = _values(candidate, motion, problem.terms)
+    constrained = _values(candidate, motion, problem.constrained) if problem.constrained else None
+    return _combine(values, constrained, problem)
+
+
+def _floor(robot: Robot, motion: Motion, metric) -> Scalar:
+    """Scale floor of a metric: the bare robot's mass or base inertia for the added
+    ones, :data:`SCALE_FLOOR` otherwise."""
+    if metric not in ("added_mass", "added_inertia"):
+        return jnp.asarray(SCALE_FLOOR)
+    design = robot.design()
+    bare = robot.with_design(
+        {n: jnp.zeros_like(design[n]) for n in ADDED_MASS_VARIABLES if n in design}
+    )
+    reference = total_mass(bare) if metric == "added_mass" else base_inertia(bare, motion.q[0])
+    return jnp.maximum(reference, SCALE_FLOOR)
+
+
+@eqx.filter_jit
+def _evaluate(robot: Robot, motion: Motion, metrics: tuple):
+    """Values and scale floors of ``metrics`` (jit-compiled, cached on the structure)."""
+    floors = jnp.stack([_floor(robot, motion, m) for m in metrics])
+    return _values(robot, motion, metrics), floors
+
+
+def _objective_terms(objective) -> tuple[tuple, tuple[float, ...]]:
+    if isinstance(objective, Mapping):
+        if not objective:
+            raise ValueError("objective dict is empty; give {metric name: weight}")
+        terms, weights = tuple(objective), tuple(float(w) for w in objective.values())
+    else:
+        terms, weights = (objective,), (1.0,)
+    for term in terms:
+        resolve_metric(term)
+    if not all(np.isfinite(w) and w >= 0 for w in weights):
+        raise ValueError(f"objective weights must be finite and non-negative, got {weights}")
+    return terms, weights
+
+
+def _bounds(robot, free, lower, upper):
+    design = robot.design()
+    merged = dict(robot.design_lower_bounds())
+    merged.update(lower or {})
+    check_design_names(robot, merged)
+    check_design_names(robot, upper or {})
+    lows, highs, two_sided = [], [], []
+    for name in free:
+        shape = np.shape(design[name])
+        lo = np.broadcast_to(finite_array(f"lower[{name!r}]", merged.get(name, 0.0)), shape)
+        two = upper is not None and name in upper
+        hi = np.broadcast_to(finite_array(f"upper[{name!r}]", upper[name]), shape) if two else lo
+        if two and not np.all(hi > lo):
+            raise ValueError(f"upper[{name!r}] = {hi!r} must exceed lower = {lo!r}")
+        lows.append(jnp.asarray(lo, dtype=float))
+        highs.append(jnp.asarray(hi, dtype=float))
+        two_sided.append(bool(two))
+    return tuple(lows), tuple(highs), tuple(two_sided)
+
+
+def codesign(
+    robot: Robot,
+    motions,
+    objective: Metric | Mapping[Metric, float] = "rms_force",
+    *,
+    free=None,
+    lower: Mapping[str, Any] | None = None,
+    upper: Mapping[str, Any] | None = None,
+    start: Mapping[str, Any] | None = None,
+    max_steps: int = 200,
+    gtol: float = 1e-10,
+    optimizer=None,
+    constraints: Mapping[Metric, float] | None = None,
+    penalty: float = CONSTRAINT_PENALTY,
+) -> DesignSolution:
+    """Optimal design variables of ``robot`` for a fixed motion (see the module doc).
+
+    Args:
+        robot: any :class:`~jaxbal.Robot`.
+        motions: a :class:`~jaxbal.design.Motion` (e.g. from
+            :func:`~jaxbal.design.motion_samples`), a ``(q, q̇, q̈)`` tuple, or a list
+            of them (several trajectories, concatenated in time).
+        objective: a metric name (:data:`~jaxbal.design.METRICS`), a callable
+            ``(robot, motion) -> scalar``, or a dict ``{metric: weight}``.
+        free: names of the design variables to optimise; default all but ``payload``.
+        lower: lower bounds by name (scalar or the variable's shape), overriding
+            :meth:`~jaxbal.Robot.design_lower_bounds` (masses and distances: 0).
+        upper: optional upper bounds by name (the others are unbounded above).
+        start: starting values by name (default: the robot's); any design variable
+            may be given, the non-free ones are simply set.
+        max_steps: L-BFGS iteration cap.
+        gtol: stop when the gradient norm of the loss falls below this.
+        optimizer: an optax transformation (default optax L-BFGS); pass the same
+            object on every call to reuse the compiled loop.
+        constraints: optional ``{metric: upper bound [SI]}``, e.g. an added-mass budget
+            ``{"added_mass": 2.0}``, enforced by the quadratic penalty.
+        penalty: weight ``P`` of the constraint penalty.
+
+    Returns:
+        A :class:`DesignSolution`.
+
+    Raises:
+        ValueError: an unknown metric or design-variable name (the message lists the
+            valid ones), an empty ``free``, a non-finite start or bound, a start
+            outside the bounds, or a motion of the wrong shape.
+    """
+    motion = as_motion(motions)
+    if motion.q.ndim != 2 or motion.q.shape[1] != robot.dof:
+        raise ValueError(f"motion q must have shape (t, {robot.dof}), got {motion.q.shape}")
+    terms, weights = _objective_terms(objective)
+    constraints = dict(constraints or {})
+    constrained = tuple(constraints)
+    for metric in constrained:
+        resolve_metric(metric)
+    bounds = np.array([float(b) for b in constraints.values()])
+    if not np.all(np.isfinite(bounds)):
+        raise ValueError(f"constraint bounds must be finite, got {constraints}")
+
+    design = robot.design()
+    if free is None:
+        free = tuple(name for name in design if name != "payload")
+    free = tuple(dict.fromkeys(check_design_names(robot, free)))
+    if not free:
+        raise ValueError(
+            f"free names no design variable to optimise; {type(robot).__name__} has "
+            f"{sorted(design)}"
+        )
+    start = dict(start or {})
+    check_design_names(robot, start)
+    for name, value in start.items():
+        finite_array(f"start[{name!r}]", value)
+    robot = robot.with_design(start)
+    x0 = {name: finite_array(f"start value of {name!r}", robot.design()[name]) for name in free}
+    lows, highs, two_sided = _bounds(robot, free, lower, upper)
+    for name, lo, hi, two in zip(free, lows, highs, two_sided, strict=True):
+        if np.any(x0[name] < np.asarray(lo)) or (two and np.any(x0[name] > np.asarray(hi))):
+            raise ValueError(f"start of {name!r} = {x0[name]!r} lies outside its bounds")
+
+    everything = terms + tuple(m for m in constrained if m not in terms)
+    before, floors = _evaluate(robot, motion, everything)
+    scales = jnp.maximum(jnp.abs(before[: len(terms)]), floors[: len(terms)])
+    where = [everything.index(m) for m in constrained]
+    bound_scales = jnp.maximum(jnp.abs(jnp.asarray(bounds)), floors[jnp.asarray(where, int)])
+    problem = _Problem(
+        free=free,
+        two_sided=two_sided,
+        terms=terms,
+        constrained=constrained,
+        lower=lows,
+        upper=highs,
+        weights=jnp.asarray(weights),
+        scales=scales,
+        bounds=jnp.asarray(bounds, dtype=float),
+        bound_scales=bound_scales,
+        penalty=jnp.asarray(penalty, dtype=float),
+    )
+    solution = minimize(
+        design_loss,
+        _to_params(x0, problem),
+        optimizer=optimizer,
+        max_steps=max_steps,
+        gtol=gtol,
+        args=(robot, motion, problem),
+    )
+    optimised = robot.with_design(_to_design(solution.params, problem))
+    after, _ = _evaluate(optimised, motion, everything)
+    n = len(terms)
+    initial_value = _combine(before[:n], before[jnp.asarray(where, int)], problem)
+    names = [metric_name(m) for m in everything]
+    constraint_values = {
+        metric_name(m): (after[i], problem.bounds[k])
+        for k, (m, i) in enumerate(zip(constrained, where, strict=True))
+    }
+    excess = after[jnp.asarray(where, int)] - problem.bounds
+    return DesignSolution(
+        design=optimised.design(),
+        robot=optimised,
+        value=solution.value,
+        initial_value=initial_value,
+        metrics={name: (before[i], after[i]) for i, name in enumerate(names)},
+        constraints=constraint_values,
+        feasible=jnp.all(excess <= FEASIBILITY_RTOL * bound_scales),
+        converged=solution.converged,
+        steps=solution.steps,
+        grad_norm=solution.grad_norm,
+        history=solution.history,
+    )

@@ -1,0 +1,94 @@
+"""Studies that every robot shares: jaxbal vs MuJoCo along a list of trajectories.
+
+An experiment that reproduces a paper's table usually evaluates several named motions
+(``name ↦ (robot, trajectory t ↦ q)``) and confirms each of them independently with
+MuJoCo C or MJX. This module does that once for every robot:
+
+* :func:`confirm_cases`: :func:`jaxbal.mujoco.confirm` along every named trajectory,
+  the states sampled exactly by one compiled sampler (compiled once per trajectory
+  structure, not once per trajectory as :func:`jaxbal.mujoco.confirm_path`);
+* :func:`agreement_table`: those confirmations as a :class:`jaxbal.report.Table` with
+  the columns ``force_rel`` and ``moment_rel``;
+* :func:`mujoco_peaks`: the peak force and moment of MuJoCo C's base reaction along a
+  trajectory (an independent number beside jaxbal's peak).
+
+The relative differences are those of :class:`jaxbal.mujoco.Confirmation`: the largest
+difference over the samples divided by the peak gross inertial force (moment).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+
+import equinox as eqx
+import numpy as np
+
+from jaxbal._src.mujoco.inverse import Confirmation, confirm, mujoco_base_reaction
+from jaxbal._src.report import Table
+from jaxbal._src.robot import Robot
+from jaxbal._src.trajectory import sample
+from jaxbal._src.types import Array, Float
+
+__all__ = ["AGREEMENT_COLUMNS", "agreement_table", "confirm_cases", "mujoco_peaks", "sample_states"]
+
+#: Table column ↦ :class:`~jaxbal.mujoco.Confirmation` attribute of :func:`agreement_table`.
+AGREEMENT_COLUMNS = {"force_rel": "force_relative", "moment_rel": "moment_relative"}
+
+
+@eqx.filter_jit
+def sample_states(trajectory: Callable, times: Float[Array, " t"]) -> tuple:
+    """``(q, q̇, q̈)``, each ``(t, dof)``, of ``trajectory`` at ``times`` [s] (exact, by
+    nested ``jvp``; compiled once per trajectory structure)."""
+    return sample(trajectory, times)
+
+
+def confirm_cases(
+    cases: Mapping[str, tuple[Robot, Callable]],
+    times: Float[Array, " t"],
+    *,
+    engine: str = "mjx",
+    gravity=None,
+) -> dict[str, Confirmation]:
+    """:func:`jaxbal.mujoco.confirm` along every named trajectory.
+
+    Args:
+        cases: ``name ↦ (robot, trajectory)``, the trajectory a callable ``t ↦ q``.
+        times: ``(t,)`` sampling instants [s], the same for every case.
+        engine: ``"mjx"`` (``mjx.inverse``, jitted) or ``"mujoco"`` (C ``mj_inverse``).
+        gravity: optional ``(3,)`` gravity [m/s²].
+
+    Returns:
+        ``name ↦`` :class:`~jaxbal.mujoco.Confirmation`, in the order of ``cases``.
+    """
+    return {
+        name: confirm(robot, *sample_states(path, times), gravity=gravity, engine=engine)
+        for name, (robot, path) in cases.items()
+    }
+
+
+def agreement_table(
+    table_id: str,
+    title: str,
+    confirmations: Mapping[str, Confirmation],
+    columns: Mapping[str, str] = AGREEMENT_COLUMNS,
+    tolerance: float | None = None,
+) -> Table:
+    """A table with one row per confirmation and one column per attribute (default:
+    ``force_rel`` and ``moment_rel``, dimensionless)."""
+    table = Table(table_id, title, tolerance)
+    for row, confirmation in confirmations.items():
+        for column, attribute in columns.items():
+            table.add(row, column, getattr(confirmation, attribute), "-")
+    return table
+
+
+def mujoco_peaks(
+    robot: Robot, trajectory: Callable, times: Float[Array, " t"], gravity=None
+) -> tuple[float, float]:
+    """``(max_t ‖f‖ [N], max_t ‖m‖ [N·m])`` of MuJoCo C's base reaction (``mj_inverse``
+    on the robot's kinematic tree) along ``trajectory`` sampled at ``times``."""
+    force, moment = mujoco_base_reaction(robot, *sample_states(trajectory, times), gravity=gravity)
+    return (
+        float(np.max(np.linalg.norm(force, axis=-1))),
+        float(np.max(np.linalg.norm(moment, axis=-1))),
+    )
