@@ -28,8 +28,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 import jaxbal  # noqa: E402
+from jaxbal import minimize, pose_motion  # noqa: E402
 from jaxbal.mujoco import confirm  # noqa: E402
-from jaxbal import minimize  # noqa: E402
 from jaxbal.profiles import Quintic  # noqa: E402
 from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
 from jaxbal.robots import CROSSED, OUTWARD, dual_v  # noqa: E402
@@ -45,7 +45,6 @@ from jaxbal.robots.dual_v_balancing import (  # noqa: E402
 from jaxbal.robots.dual_v_dynamics import (  # noqa: E402
     evaluate,
     forward_accelerations,
-    joint_motion,
     paper_torques,
     torque_split,
     virtual_work_torques,
@@ -87,7 +86,7 @@ def straight(axis, peak_acceleration, samples=SAMPLES):
 @eqx.filter_jit
 def joint_states(robot, motion, branch=OUTWARD):
     """``(q, q̇, q̈)`` of all 11 coordinates along a sampled platform motion."""
-    return jax.vmap(lambda a, b, c: joint_motion(robot, a, b, c, branch))(*motion)
+    return jax.vmap(lambda a, b, c: pose_motion(robot, a, b, c, branch=branch))(*motion)
 
 
 @eqx.filter_jit
@@ -110,7 +109,7 @@ def forward_check(robot, motion):
     torques of eqs (3)-(29)."""
 
     def one(u, ud, udd):
-        q, qd, qdd = joint_motion(robot, u, ud, udd)
+        q, qd, qdd = pose_motion(robot, u, ud, udd)
         recovered, _ = forward_accelerations(robot, q, qd, paper_torques(robot, q, ud, udd))
         return jnp.max(jnp.abs(recovered - qdd)), jnp.max(jnp.abs(qdd))
 
@@ -123,7 +122,7 @@ def torque_check(robot, motion):
     """Max differences of eqs (3)-(29) against the two Lagrange/autodiff computations."""
 
     def one(u, ud, udd):
-        q, _, _ = joint_motion(robot, u, ud, udd)
+        q, _, _ = pose_motion(robot, u, ud, udd)
         tau = paper_torques(robot, q, ud, udd)
         split = virtual_work_torques(robot, u, ud, udd, distribution="paper")
         minimum_norm = virtual_work_torques(robot, u, ud, udd)
@@ -144,7 +143,7 @@ def peak_force_x(robot, motion):
     """Shaking force along x at the sample of peak |ẍ5| (linear in the design)."""
     index = jnp.argmax(jnp.abs(motion[2][:, 0]))
     sample = tuple(m[index] for m in motion)
-    q, qd, qdd = joint_motion(robot, *sample)
+    q, qd, qdd = pose_motion(robot, *sample)
     return jaxbal.shaking_wrench(robot, q, qd, qdd)[0][0], sample[2][0]
 
 
@@ -369,7 +368,7 @@ def run(ctx):
     # --- co-design -------------------------------------------------------------------
     ctx.progress("co-design")
     _, coarse = triangle(samples=21)
-    coarse_joint = jax.vmap(lambda a, b, c: joint_motion(robot, a, b, c))(*coarse)
+    coarse_joint = jax.vmap(lambda a, b, c: pose_motion(robot, a, b, c))(*coarse)
     start = (jnp.log(jnp.full(4, 4.0)), jnp.log(jnp.full(4, 0.05)))
     trade = []
     for weight in WEIGHTS:

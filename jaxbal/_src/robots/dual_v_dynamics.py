@@ -145,6 +145,22 @@ class SplitModel(Robot):
 
     robot: DualV
 
+    @property
+    def dof(self) -> int:
+        return 7
+
+    def end_effector(self, x) -> Float[Array, "3"]:
+        """The platform pose ``(x5, y5, θ5)``, the last three coordinates."""
+        return jnp.asarray(x, dtype=float)[4:7]
+
+    def inverse_kinematics(self, pose, *, branch=None, return_valid: bool = False):
+        """``x = (θ_11..θ_41, x5, y5, θ5)`` from the DUAL-V's inverse kinematics."""
+        select = np.asarray([0, 1, 2, 3, 8, 9, 10])
+        if return_valid:
+            q, valid = self.robot.inverse_kinematics(pose, branch=branch, return_valid=True)
+            return q[select], valid
+        return self.robot.inverse_kinematics(pose, branch=branch)[select]
+
     def mass_properties(self) -> Bodies:
         r = self.robot
         full = r.mass_properties()
