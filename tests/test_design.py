@@ -1,0 +1,225 @@
+"""Co-design on every robot (jaxbal.design): closed forms, force reduction, penalties,
+compilation reuse and input errors."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxbal
+from jaxbal.design import (
+    METRICS,
+    Motion,
+    added_inertia,
+    added_mass,
+    codesign,
+    motion_samples,
+    rms_force,
+)
+from jaxbal.planning import EndEffectorLine
+from jaxbal.profiles import Quintic
+from jaxbal.robots import planar_arm, scara_balancing
+
+SAMPLES = 31
+COUNTER_DISTANCES_2R = jnp.array([0.35, 0.2])  # Briot et al. (2012), §3.3 footnote 1
+
+
+def _line(robot, start, end, duration):
+    trajectory = EndEffectorLine(robot, jaxbal.StraightLine(start, end, Quintic(), duration))
+    return motion_samples(robot, trajectory, jnp.linspace(0.0, duration, SAMPLES))
+
+
+def _arm_2r(payload=5.0):
+    return jaxbal.robots.planar_2r(payload).with_design({"counter_distance": COUNTER_DISTANCES_2R})
+
+
+@pytest.fixture(scope="module")
+def motion_2r():
+    return _line(_arm_2r(), [0.6, 0.1], [0.1, 0.6], 0.3)
+
+
+@pytest.fixture(scope="module")
+def scara_case():
+    robot = jaxbal.robots.scara()
+    move = jaxbal.robots.PickAndPlace(
+        [0.15, 0.2, np.deg2rad(83.0)], [-0.15, 0.2, np.deg2rad(157.0)], 0.3, lift=0.03
+    )
+    trajectory = jaxbal.robots.joint_trajectory(robot, move)
+    return robot, motion_samples(robot, trajectory, jnp.linspace(0.0, 0.3, SAMPLES))
+
+
+_TRACES = []
+
+
+def counted_rms_force(robot, motion):
+    """The RMS shaking force; records each trace (it runs only while JAX traces)."""
+    _TRACES.append(type(robot).__name__)
+    return rms_force(robot, motion)
+
+
+def test_planar_2r_reaches_closed_form(motion_2r):
+    """2R, counterweights free at 0.35 m and 0.2 m (a callable objective): the optimum
+    is the closed form of planar_arm.force_balanced (Briot et al. 2012, §3.3), masses to
+    1e-6 relative, and the RMS shaking force vanishes (< 1e-6 of the unbalanced one)."""
+    arm = _arm_2r()
+    solution = codesign(arm, motion_2r, counted_rms_force, free=["counter_mass"])
+    expected = planar_arm.force_balanced(arm, COUNTER_DISTANCES_2R).counter_masses
+    np.testing.assert_allclose(solution.design["counter_mass"], expected, rtol=1e-6)
+    before, after = solution.metrics["counted_rms_force"]
+    assert after < 1e-6 * before
+    assert bool(solution.converged)
+    np.testing.assert_allclose(solution.design["counter_distance"], COUNTER_DISTANCES_2R)
+    assert float(solution.value) < 1e-12 < float(solution.initial_value)
+
+
+def test_second_call_does_not_retrace(motion_2r):
+    """A second co-design of a 2R with another payload and start reuses the compiled
+    L-BFGS loop and evaluation: the objective is not traced again (trace count), and
+    the answer is the new closed form (force_balanced, 1e-6 relative)."""
+    codesign(_arm_2r(5.0), motion_2r, counted_rms_force, free=["counter_mass"])
+    traced = len(_TRACES)
+    assert traced > 0
+    arm = _arm_2r(2.0)
+    start = {"counter_mass": jnp.array([3.0, 1.0])}
+    solution = codesign(arm, motion_2r, counted_rms_force, free=["counter_mass"], start=start)
+    assert len(_TRACES) == traced
+    expected = planar_arm.force_balanced(arm, COUNTER_DISTANCES_2R).counter_masses
+    np.testing.assert_allclose(solution.design["counter_mass"], expected, rtol=1e-6)
+
+
+def test_scara_reaches_closed_form(scara_case):
+    """SCARA, counter-masses and vertical counterweight free from zero: the optimum is
+    the closed form of scara_balancing.force_balanced (Arakelian & Briot 2008, eqs 1-3
+    and Fig 5) to 1e-6 kg (masses of 0 to 5 kg); added_mass is their sum (1e-6 kg)."""
+    robot, motion = scara_case
+    solution = codesign(robot, motion, free=["counter_mass", "vertical_counterweight"])
+    expected = scara_balancing.force_balanced(robot)
+    np.testing.assert_allclose(
+        solution.design["counter_mass"], expected.counter_masses, rtol=1e-6, atol=1e-6
+    )
+    np.testing.assert_allclose(
+        solution.design["vertical_counterweight"], expected.vertical_counterweight, atol=1e-6
+    )
+    np.testing.assert_allclose(
+        added_mass(solution.robot),
+        jnp.sum(expected.counter_masses) + expected.vertical_counterweight,
+        atol=1e-6,
+    )
+
+
+def _reduced(solution, before_factor):
+    """The RMS and the peak force both fall below ``before_factor`` × their start."""
+    for name in ("rms_force", "peak_force"):
+        before, after = solution.metrics[name]
+        assert float(after) < before_factor * float(before), (name, before, after)
+
+
+def test_planar_3r_added_mass_budget():
+    """3R with counterweights at 0.35, 0.2, 0.1 m and an added-mass budget of half the
+    closed form's (planar_arm.force_balanced): the budget is active and met to
+    FEASIBILITY_RTOL (1e-3 relative; penalty weight 1e4) and the RMS and peak forces
+    fall (reference: the unbalanced 3R on the same motion, factor < 0.9)."""
+    distances = jnp.array([0.35, 0.2, 0.1])
+    robot = jaxbal.robots.planar_3r().with_design({"counter_distance": distances})
+    motion = _line(robot, [0.6, 0.1, 0.0], [0.1, 0.6, 1.0], 0.3)
+    balanced = planar_arm.force_balanced(robot, distances).counter_masses
+    budget = 0.5 * float(jnp.sum(balanced))
+    objective = {"rms_force": 1.0, "peak_force": 0.0}
+    constraints = {"added_mass": budget}
+    solution = codesign(robot, motion, objective, free=["counter_mass"], constraints=constraints)
+    value, bound = solution.constraints["added_mass"]
+    assert float(bound) == budget and bool(solution.feasible)
+    np.testing.assert_allclose(value, budget, rtol=1e-3)
+    assert float(solution.metrics["added_mass"][0]) == 0.0
+    _reduced(solution, 0.9)
+
+
+def test_dual_v_full_force_balance_within_bounds():
+    """DUAL-V without counter-masses, distances bounded to [0, 0.1] m (two-sided map):
+    co-design balances it completely (RMS and peak force < 1e-6 of the unbalanced
+    robot's on the same motion) and the bounds hold exactly."""
+    robot = jaxbal.robots.dual_v(counter_masses=False)
+    motion = _line(robot, [0.0, -0.05, 0.0], [0.05, 0.05, 0.0], 0.1)
+    start = {"counter_mass": jnp.ones(4), "counter_distance": jnp.full(4, 0.05)}
+    solution = codesign(
+        robot,
+        motion,
+        {"rms_force": 1.0, "peak_force": 0.0},
+        start=start,
+        upper={"counter_distance": 0.1},
+    )
+    assert bool(solution.converged)
+    _reduced(solution, 1e-6)
+    distance = np.asarray(solution.design["counter_distance"])
+    assert np.all((distance >= 0.0) & (distance <= 0.1))
+    assert np.all(np.asarray(solution.design["counter_mass"]) >= 0.0)
+
+
+def test_orthoglide_counter_sliders_reduce_force():
+    """Orthoglide, counter-sliders from zero, EndEffectorLine (0,0,0) -> (-0.1,0.07,-0.11)
+    in 0.1 s: the RMS and peak shaking forces fall below 0.5 of the unbalanced robot's
+    (counter-sliders cannot balance the parallelograms, so not to zero)."""
+    robot = jaxbal.robots.orthoglide()
+    motion = _line(robot, [0.0, 0.0, 0.0], [-0.1, 0.07, -0.11], 0.1)
+    solution = codesign(robot, motion, {"rms_force": 1.0, "peak_force": 0.0})
+    assert bool(solution.converged)
+    _reduced(solution, 0.5)
+    assert np.all(np.asarray(solution.design["counter_mass"]) > 0.0)
+    assert float(solution.design["payload"]) == 0.0
+
+
+def test_added_inertia_of_counterweights(motion_2r):
+    """added_inertia of a 2R = Σ m_cw,k |c_cw,k|² of its point counterweights about the
+    base z axis at the motion's first sample (closed form, 1e-12 relative)."""
+    arm = planar_arm.force_balanced(_arm_2r(), COUNTER_DISTANCES_2R)
+    q1, q2 = motion_2r.q[0]
+    joint_a = 0.5 * jnp.array([jnp.cos(q1), jnp.sin(q1)])
+    second = joint_a - 0.2 * jnp.array([jnp.cos(q1 + q2), jnp.sin(q1 + q2)])
+    mass = arm.counter_masses
+    expected = mass[0] * 0.35**2 + mass[1] * jnp.sum(second**2)
+    np.testing.assert_allclose(jax.jit(added_inertia)(arm, motion_2r), expected, rtol=1e-12)
+    assert float(jax.jit(added_inertia)(_arm_2r(), motion_2r)) == 0.0
+
+
+def test_motion_samples_stacks_and_checks_loop_closures(motion_2r):
+    """motion_samples stacks several trajectories (the 2R fixture's samples, exactly) and
+    raises ValueError, naming the instants, for a state off the Orthoglide's loop
+    closures (tolerance LOOP_TOLERANCE = 1e-8 m; the state is 1e-3 m off)."""
+    arm = _arm_2r()
+    line = EndEffectorLine(arm, jaxbal.StraightLine([0.6, 0.1], [0.1, 0.6], Quintic(), 0.3))
+    times = jnp.linspace(0.0, 0.3, SAMPLES)
+    motion = motion_samples(arm, [line, line], [times, times])
+    assert isinstance(motion, Motion) and motion.q.shape == (2 * SAMPLES, 2)
+    for stacked, single in zip(motion, motion_2r, strict=True):
+        np.testing.assert_array_equal(stacked, jnp.concatenate([single, single]))
+    robot = jaxbal.robots.orthoglide()
+    q_home = robot.inverse_kinematics(jnp.zeros(3))
+    with pytest.raises(ValueError, match="loop closures"):
+        motion_samples(robot, lambda t: q_home.at[0].add(1e-3 + 0.0 * t), jnp.zeros(1))
+    with pytest.raises(ValueError, match="time arrays"):
+        motion_samples(arm, [line, line], [times])
+
+
+def test_bad_inputs_raise(motion_2r):
+    """Unknown metric / design names list the valid ones; empty free, non-finite start,
+    negative weight, start outside bounds and a wrong motion shape are ValueErrors."""
+    arm = _arm_2r()
+    with pytest.raises(ValueError, match="rms_force"):
+        codesign(arm, motion_2r, "rms_shaking")
+    with pytest.raises(ValueError, match="counter_mass"):
+        codesign(arm, motion_2r, free=["counter_masses"])
+    with pytest.raises(ValueError, match="no design variable"):
+        codesign(arm, motion_2r, free=[])
+    with pytest.raises(ValueError, match="finite"):
+        codesign(arm, motion_2r, start={"counter_mass": jnp.array([jnp.nan, 1.0])})
+    with pytest.raises(ValueError, match="non-negative"):
+        codesign(arm, motion_2r, {"rms_force": 1.0, "added_mass": -1.0})
+    with pytest.raises(ValueError, match="outside its bounds"):
+        codesign(arm, motion_2r, free=["counter_mass"], lower={"counter_mass": 1.0})
+    with pytest.raises(ValueError, match="must exceed"):
+        codesign(arm, motion_2r, upper={"counter_distance": 0.0})
+    with pytest.raises(ValueError, match="shape"):
+        codesign(arm, Motion(*(v[:, :1] for v in motion_2r)))
+    with pytest.raises(ValueError, match="added_inertia"):
+        codesign(arm, motion_2r, constraints={"mass": 1.0})
+    assert set(METRICS) >= {"peak_force", "rms_force", "peak_moment", "rms_moment"}
