@@ -179,8 +179,8 @@ class Robot(eqx.Module):
             branch = (int(branch),) * self.branch_size
         try:
             signs = tuple(int(s) for s in branch)
-            exact = all(float(s) == int(s) for s in branch)
-        except TypeError as error:
+            exact = all(float(s) == int(s) for s in branch) and not isinstance(branch, str)
+        except (TypeError, ValueError) as error:
             raise ValueError(f"branch must be ±1 or a tuple of ±1 signs, got {branch!r}") from error
         if not exact or len(signs) != self.branch_size or any(s not in (1, -1) for s in signs):
             raise ValueError(

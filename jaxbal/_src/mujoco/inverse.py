@@ -46,11 +46,13 @@ with contextlib.redirect_stdout(io.StringIO()):  # MJX prints "Failed to import 
     from mujoco import mjx
 
 from jaxbal._src.momentum import shaking_wrench
+from jaxbal._src.motion import state_valid
 from jaxbal._src.mujoco.mjcf import BASE_MASS, mujoco_inertials, to_mjcf
 from jaxbal._src.mujoco.tree import Tree, tree_state
 from jaxbal._src.robot import Robot
+from jaxbal._src.trajectory import sample
 from jaxbal._src.types import Coordinates, Vec3
-from jaxbal._src.validation import check_shape
+from jaxbal._src.validation import check_shape, raise_if_invalid
 
 
 @functools.lru_cache(maxsize=64)
@@ -298,9 +300,16 @@ class Confirmation(NamedTuple):
 
 @jax.jit
 def _reference_and_scales(robot: Robot, q, qd, qdd, g):
-    """jaxbal's shaking wrench ``(T, 3)`` ×2 and the gross scales (see :func:`confirm`)."""
+    """jaxbal's shaking wrench ``(T, 3)`` ×2, the gross scales (see :func:`confirm`) and
+    the validity of every state (finite, loop closures satisfied)."""
     force, moment = jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c, gravity=g))(q, qd, qdd)
-    return force, moment, *_gross_scales(robot, q, qd, qdd, g)
+    valid = jax.vmap(lambda a, b, c: state_valid(robot, a, b, c))(q, qd, qdd)
+    return force, moment, *_gross_scales(robot, q, qd, qdd, g), valid
+
+
+@eqx.filter_jit
+def _sample_path(joint_path, times):
+    return sample(joint_path, times, 2)[:3]
 
 
 def _gross_scales(robot: Robot, q, qd, qdd, g):
@@ -347,7 +356,15 @@ def confirm(
     """
     q, qd, qdd = (jnp.atleast_2d(jnp.asarray(a, dtype=float)) for a in (q, qd, qdd))
     g = jnp.zeros(3) if gravity is None else jnp.asarray(gravity, dtype=float)
-    ref_force, ref_moment, gross_force, gross_moment = _reference_and_scales(robot, q, qd, qdd, g)
+    ref_force, ref_moment, gross_force, gross_moment, valid = _reference_and_scales(
+        robot, q, qd, qdd, g
+    )
+    raise_if_invalid(
+        valid,
+        f"confirm: states violate the loop closures of {type(robot).__name__} (or are not "
+        "finite); first bad q",
+        q,
+    )
     if engine == "mujoco":
         force, moment = mujoco_base_reaction(robot, q, qd, qdd, gravity=gravity, tree=tree)
         independent = (robot.mujoco_tree() if tree is None else tree).independent
@@ -384,7 +401,5 @@ def confirm_path(
     ``q, q̇, q̈`` are sampled exactly (nested ``jvp``, jitted) as in
     :func:`jaxbal.sample`; use this for the MJX column of a shaking-force table.
     """
-    from jaxbal._src.trajectory import sample
-
-    q, qd, qdd = jax.jit(lambda ts: sample(joint_path, ts, 2)[:3])(jnp.asarray(times, dtype=float))
+    q, qd, qdd = _sample_path(joint_path, jnp.asarray(times, dtype=float))
     return confirm(robot, q, qd, qdd, gravity=gravity, engine=engine, tree=tree)

@@ -30,6 +30,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import mujoco
@@ -39,6 +40,16 @@ from jaxbal._src.mujoco.mjcf import to_mjcf
 from jaxbal._src.mujoco.tree import Tree, tree_state
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import sample
+
+
+@eqx.filter_jit
+def _evaluate(function, times):
+    return jax.vmap(function)(times)
+
+
+@eqx.filter_jit
+def _sample_positions_velocities(joint_path, times):
+    return sample(joint_path, times, 1)[:2]
 
 
 class Tracking(NamedTuple):
@@ -124,10 +135,10 @@ def simulate_open_loop(
 
     steps = int(round(duration / timestep))
     mid_times = (np.arange(steps) + 0.5) * timestep
-    controls = effort_scale * np.asarray(jax.jit(jax.vmap(efforts))(jnp.asarray(mid_times)))
+    controls = effort_scale * np.asarray(_evaluate(efforts, jnp.asarray(mid_times)))
     record_steps = np.arange(0, steps + 1, record_every)
     times = record_steps * timestep
-    q, qd = jax.jit(lambda ts: sample(joint_path, ts, 1)[:2])(jnp.asarray(times))
+    q, qd = _sample_positions_velocities(joint_path, jnp.asarray(times))
     planned_qpos = np.asarray(jax.vmap(lambda a: tree_state(tree, a, a * 0, a * 0)[0])(q))
 
     qpos0, qvel0, _ = tree_state(tree, q[0], qd[0], jnp.zeros_like(q[0]))

@@ -102,6 +102,7 @@ class DualV(PlanarRobot):
     """
 
     branch_size = 4
+    design_fields = {"payload": "payload"}  # counter-masses: see design()/with_design()
 
     l1: Float[Array, "4"]
     l2: Float[Array, "4"]
@@ -306,16 +307,23 @@ class DualV(PlanarRobot):
     def with_design(self, design: Mapping) -> DualV:
         """The robot with new design variables. A new counter-mass or distance makes
         each counter-mass one body (tuning mass folded in) whose inertia about its own
-        COM scales with its mass (same radius of gyration)."""
+        COM scales with its mass (same radius of gyration; zero for a robot built
+        without counter-masses, whose new counter-masses are then point masses)."""
+        current = self.design()
+        unknown = set(design) - set(current)
+        if unknown:
+            raise ValueError(
+                f"unknown design variable(s) {sorted(unknown)} of DualV; it has {sorted(current)}"
+            )
         robot = super().with_design({k: v for k, v in design.items() if k == "payload"})
         if not {"counter_mass", "counter_distance"} & set(design):
             return robot
-        current = self.design()
         mass = jnp.asarray(design.get("counter_mass", current["counter_mass"]), dtype=float)
         distance = jnp.asarray(
             design.get("counter_distance", current["counter_distance"]), dtype=float
         )
-        mass, distance = jnp.broadcast_to(mass, (4,)), jnp.broadcast_to(distance, (4,))
+        check_shape("design['counter_mass']", mass, (4,))
+        check_shape("design['counter_distance']", distance, (4,))
         old_mass = current["counter_mass"]
         about_own = (
             self.counter_mass_inertia_about_base() - old_mass * current["counter_distance"] ** 2
