@@ -2,12 +2,10 @@
 open-loop forward simulation. Nothing here is robot-specific: every robot brings its
 own kinematic tree (:meth:`jaxbal.Robot.mujoco_tree`)."""
 
+from jaxbal._src.mujoco.confirm import Confirmation, confirm, confirm_path
 from jaxbal._src.mujoco.inverse import (
-    Confirmation,
     MjxRobot,
     MujocoRobot,
-    confirm,
-    confirm_path,
     mjx_base_reaction,
     mjx_model,
     mujoco_base_reaction,

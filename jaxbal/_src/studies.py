@@ -34,7 +34,7 @@ from jaxbal._src.trajectory import sample
 from jaxbal._src.types import Array, Float
 
 if TYPE_CHECKING:  # MuJoCo is imported on first use (slow to import)
-    from jaxbal._src.mujoco.inverse import Confirmation
+    from jaxbal._src.mujoco.confirm import Confirmation
 
 __all__ = [
     "AGREEMENT_COLUMNS",
@@ -74,7 +74,7 @@ def confirm_cases(
     Returns:
         ``name ↦`` :class:`~jaxbal.mujoco.Confirmation`, in the order of ``cases``.
     """
-    from jaxbal._src.mujoco.inverse import confirm
+    from jaxbal._src.mujoco.confirm import confirm
 
     return {
         name: confirm(robot, *sample_states(path, times), gravity=gravity, engine=engine)

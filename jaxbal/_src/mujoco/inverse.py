@@ -45,14 +45,11 @@ import numpy as np
 with contextlib.redirect_stdout(io.StringIO()):  # MJX prints "Failed to import warp" (harmless)
     from mujoco import mjx
 
-from jaxbal._src.momentum import shaking_wrench
-from jaxbal._src.motion import state_valid
 from jaxbal._src.mujoco.mjcf import BASE_MASS, mujoco_inertials, to_mjcf
 from jaxbal._src.mujoco.tree import Tree, tree_state
 from jaxbal._src.robot import Robot
-from jaxbal._src.trajectory import sample
 from jaxbal._src.types import Coordinates, Vec3
-from jaxbal._src.validation import check_shape, raise_if_invalid
+from jaxbal._src.validation import check_shape
 
 
 @functools.lru_cache(maxsize=64)
@@ -266,140 +263,3 @@ def mjx_base_reaction(
 
 
 #: ``mjx_base_reaction`` over ``(T, dof)`` states, jitted once per robot structure.
-_mjx_along = jax.jit(jax.vmap(mjx_base_reaction, in_axes=(None, None, 0, 0, 0)))
-
-
-# --- confirmation -----------------------------------------------------------------------
-
-
-class Confirmation(NamedTuple):
-    """How closely jaxbal's shaking wrench and MuJoCo's base reaction agree.
-
-    Attributes:
-        force_relative, moment_relative: max over samples of the difference divided by
-            the peak reference magnitude (the peak gross inertial force/moment
-            ``Σ m_i |a_i|``, ``Σ |dL_i/dt|`` when larger, so a balanced robot's
-            round-off is not divided by ~0).
-        force_error, moment_error: max absolute differences [N], [N·m].
-        relative: ``max(force_relative, moment_relative)``.
-        engine: ``"mujoco"`` (C) or ``"mjx"``.
-        independent: False when the prescribed fallback tree was used.
-    """
-
-    force_relative: float
-    moment_relative: float
-    force_error: float
-    moment_error: float
-    engine: str
-    independent: bool
-
-    @property
-    def relative(self) -> float:
-        return max(self.force_relative, self.moment_relative)
-
-
-@jax.jit
-def _reference_and_scales(robot: Robot, q, qd, qdd, g):
-    """jaxbal's shaking wrench ``(T, 3)`` ×2, the gross scales (see :func:`confirm`) and
-    the validity of every state (finite, loop closures satisfied)."""
-    force, moment = jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c, gravity=g))(q, qd, qdd)
-    valid = jax.vmap(lambda a, b, c: state_valid(robot, a, b, c))(q, qd, qdd)
-    return force, moment, *_gross_scales(robot, q, qd, qdd, g), valid
-
-
-@eqx.filter_jit
-def _sample_path(joint_path, times):
-    return sample(joint_path, times, 2)[:3]
-
-
-def _gross_scales(robot: Robot, q, qd, qdd, g):
-    """Peak ``Σ_i |m_i a_i - m_i g|`` and ``Σ_i |dL_i/dt - c_i × m_i g|`` [N], [N·m]."""
-    bodies = robot.mass_properties()
-
-    def per_body(q_, qd_):
-        def poses(x):
-            origins, rotations = robot.body_frames(x)
-            return origins + jnp.einsum("nij,nj->ni", rotations, bodies.com), rotations
-
-        (c, r), (v, rdot) = jax.jvp(poses, (q_,), (qd_,))
-        skew = jnp.einsum("nij,nkj->nik", rdot, r)
-        omega = jnp.stack([skew[:, 2, 1], skew[:, 0, 2], skew[:, 1, 0]], -1)
-        inertia = jnp.einsum("nij,njk,nlk->nil", r, bodies.inertia, r)
-        p = bodies.mass[:, None] * v
-        return p, jnp.cross(c, p) + jnp.einsum("nij,nj->ni", inertia, omega), c
-
-    def rates(q_, qd_, qdd_):
-        (_, _, c), (dp, dl, _) = jax.jvp(per_body, (q_, qd_), (qd_, qdd_))
-        weight = bodies.mass[:, None] * g
-        force = jnp.sum(jnp.linalg.norm(dp - weight, axis=-1))
-        moment = jnp.sum(jnp.linalg.norm(dl - jnp.cross(c, weight), axis=-1))
-        return force, moment
-
-    force, moment = jax.vmap(rates)(q, qd, qdd)
-    return jnp.max(force), jnp.max(moment)
-
-
-def confirm(
-    robot: Robot, q, qd, qdd, gravity=None, engine: str = "mujoco", tree: Tree | None = None
-) -> Confirmation:
-    """Compare :func:`jaxbal.shaking_wrench` with MuJoCo's base reaction.
-
-    Args:
-        robot: a concrete robot.
-        q, qd, qdd: ``(T, dof)`` states along a trajectory (or one ``(dof,)`` state).
-        gravity: ``(3,)`` [m/s²] or ``None``.
-        engine: ``"mujoco"`` (C ``mj_inverse``) or ``"mjx"`` (``mjx.inverse``, jitted).
-        tree: optional tree (default: registered, else the prescribed fallback).
-
-    Returns:
-        A :class:`Confirmation` (max relative and absolute differences).
-    """
-    q, qd, qdd = (jnp.atleast_2d(jnp.asarray(a, dtype=float)) for a in (q, qd, qdd))
-    g = jnp.zeros(3) if gravity is None else jnp.asarray(gravity, dtype=float)
-    ref_force, ref_moment, gross_force, gross_moment, valid = _reference_and_scales(
-        robot, q, qd, qdd, g
-    )
-    raise_if_invalid(
-        valid,
-        f"confirm: states violate the loop closures of {type(robot).__name__} (or are not "
-        "finite); first bad q",
-        q,
-    )
-    if engine == "mujoco":
-        force, moment = mujoco_base_reaction(robot, q, qd, qdd, gravity=gravity, tree=tree)
-        independent = (robot.mujoco_tree() if tree is None else tree).independent
-    elif engine == "mjx":
-        compiled = mjx_model(robot, gravity, tree)
-        force, moment = _mjx_along(compiled, robot, q, qd, qdd)
-        independent = compiled.tree.independent
-    else:
-        raise ValueError(f"engine must be 'mujoco' or 'mjx', got {engine!r}")
-    force_error = float(np.max(np.abs(np.asarray(force) - np.asarray(ref_force))))
-    moment_error = float(np.max(np.abs(np.asarray(moment) - np.asarray(ref_moment))))
-    force_scale = max(float(jnp.max(jnp.abs(ref_force))), float(gross_force), 1e-300)
-    moment_scale = max(float(jnp.max(jnp.abs(ref_moment))), float(gross_moment), 1e-300)
-    return Confirmation(
-        force_relative=force_error / force_scale,
-        moment_relative=moment_error / moment_scale,
-        force_error=force_error,
-        moment_error=moment_error,
-        engine=engine,
-        independent=independent,
-    )
-
-
-def confirm_path(
-    robot: Robot,
-    joint_path,
-    times,
-    gravity=None,
-    engine: str = "mujoco",
-    tree: Tree | None = None,
-) -> Confirmation:
-    """:func:`confirm` along a planned joint trajectory ``t -> q`` at ``times`` [s].
-
-    ``q, q̇, q̈`` are sampled exactly (nested ``jvp``, jitted) as in
-    :func:`jaxbal.sample`; use this for the MJX column of a shaking-force table.
-    """
-    q, qd, qdd = _sample_path(joint_path, jnp.asarray(times, dtype=float))
-    return confirm(robot, q, qd, qdd, gravity=gravity, engine=engine, tree=tree)

@@ -59,22 +59,23 @@ from collections.abc import Mapping
 
 import equinox as eqx
 import jax.numpy as jnp
-import numpy as np
 
 from jaxbal._src.linalg import unit, wrap
-from jaxbal._src.mujoco.tree import Connect, Joint, Tree, TreeBody, Z, vec
+from jaxbal._src.mujoco.tree import Tree
 from jaxbal._src.planar import PlanarRobot
 from jaxbal._src.robot import Bodies, planar_inertia
+from jaxbal._src.robots.dual_v_layout import (
+    BASE_SIDE,
+    CROSSED,
+    N_COORDINATES,
+    OUTWARD,
+    PLATFORM_END,
+    dual_v_tree,
+)
 from jaxbal._src.types import Array, Float
 from jaxbal._src.validation import check_nonnegative, check_shape, raise_if_invalid
 
 __all__ = ["CROSSED", "OUTWARD", "DualV", "dual_v"]
-
-OUTWARD = (1, -1, 1, -1)
-CROSSED = (-1, 1, -1, 1)
-BASE_SIDE = jnp.array([1.0, -1.0, -1.0, 1.0])  # x sign of A_i
-PLATFORM_END = jnp.array([1.0, 1.0, -1.0, -1.0])  # s_i: y sign of A_i and end of C_i
-N_COORDINATES = 11
 
 
 def _per_arm(value):
@@ -295,8 +296,6 @@ class DualV(PlanarRobot):
         q = jnp.concatenate([theta1, theta2, pose])
         return (q, valid) if return_valid else q
 
-    # --- design variables -----------------------------------------------------------
-
     def design(self) -> dict:
         """``counter_mass`` ``(4,)`` [kg]: the mounted counter-masses (tuning fraction
         applied); ``counter_distance`` ``(4,)`` [m]: their COM behind A_i; ``payload``."""
@@ -335,55 +334,10 @@ class DualV(PlanarRobot):
             (mass, distance, inertia, jnp.zeros(4), jnp.ones(4)),
         )
 
-    # --- MuJoCo ---------------------------------------------------------------------
-
     def mujoco_tree(self) -> Tree:
         """Four RR arms from the base pivots, the platform on a planar joint, and the
-        loops closed by ``connect`` at C_i (arm i's link i2 end = platform end s_i·b)."""
-        a, b = float(self.a), float(self.b)
-        l1, l2 = np.asarray(self.l1, dtype=float), np.asarray(self.l2, dtype=float)
-        side, end = np.asarray(BASE_SIDE), np.asarray(PLATFORM_END)
-        bodies, connects = [], []
-        for i in range(4):
-            arm = i + 1
-            bodies += [
-                TreeBody(
-                    f"link{arm}1",
-                    None,
-                    pos=vec(side[i] * a, end[i] * b, 0.0),
-                    joints=(Joint(f"theta{arm}1", "hinge", Z),),
-                    visual_to=(float(l1[i]), 0, 0),
-                ),
-                TreeBody(f"counter_mass{arm}", f"link{arm}1"),
-                TreeBody(f"tuning_mass{arm}", f"link{arm}1"),
-                TreeBody(f"rotor{arm}", f"link{arm}1"),
-                TreeBody(
-                    f"link{arm}2",
-                    f"link{arm}1",
-                    pos=(float(l1[i]), 0, 0),
-                    joints=(Joint(f"theta{arm}2", "hinge", Z),),
-                    visual_to=(float(l2[i]), 0, 0),
-                ),
-            ]
-            connects.append(
-                Connect(f"link{arm}2", vec(l2[i], 0, 0), "platform", vec(0, end[i] * b, 0))
-            )
-        slides = (Joint("x5", "slide", (1.0, 0, 0)), Joint("y5", "slide", (0, 1.0, 0)))
-        bodies += [
-            TreeBody(
-                "platform",
-                None,
-                joints=slides + (Joint("theta5", "hinge", Z),),
-                visual_to=(0, b, 0),
-            ),
-            TreeBody("payload", "platform"),
-        ]
-        return Tree(
-            bodies=tuple(bodies),
-            coordinates=_mujoco_coordinates,
-            connects=tuple(connects),
-            actuated=tuple(f"theta{i}1" for i in range(1, 5)),
-        )
+        loops closed by ``connect`` at C_i (see :func:`dual_v_tree`)."""
+        return dual_v_tree(self)
 
     def jacobian(self, q) -> Float[Array, "4 3"]:
         """Eq (9): ``q̇_a = J u̇`` with ``q_a = (θ_11..θ_41)``, ``u = (x5, y5, θ5)``."""
@@ -401,12 +355,6 @@ class DualV(PlanarRobot):
         jh = self.jacobian(q) * jnp.array([1.0, 1.0, 1.0 / self.b])
         singular = jnp.linalg.svd(jh, compute_uv=False)
         return singular[0] / jnp.maximum(singular[-1], 1e-300)
-
-
-def _mujoco_coordinates(q):
-    """MuJoCo's ``qpos``: ``(θ_i1, θ_i2 − θ_i1)`` per arm, then ``(x5, y5, θ5)``."""
-    arms = jnp.stack([q[0:4], q[4:8] - q[0:4]], -1).reshape(-1)
-    return jnp.concatenate([arms, q[8:11]])
 
 
 def dual_v(

@@ -50,15 +50,15 @@ from __future__ import annotations
 
 import equinox as eqx
 import jax.numpy as jnp
-import numpy as np
 
 from jaxbal._src.implicit import newton_solve
 from jaxbal._src.linalg import skew
 from jaxbal._src.momentum import center_of_mass
-from jaxbal._src.mujoco.tree import Connect, Joint, Tree, TreeBody, minimal_rotation_quat, vec
+from jaxbal._src.mujoco.tree import Tree
 from jaxbal._src.planning import EndEffectorLine, com_line
 from jaxbal._src.profiles import BangBang, Quintic
 from jaxbal._src.robot import Bodies, Robot, concatenate, point_masses
+from jaxbal._src.robots.orthoglide_layout import COUNTER_SLIDERS, orthoglide_tree
 from jaxbal._src.trajectory import StraightLine
 from jaxbal._src.types import Array, Float
 from jaxbal._src.validation import check_nonnegative, check_shape, is_traced, raise_if_invalid
@@ -67,7 +67,6 @@ __all__ = ["COUNTER_SLIDERS", "Orthoglide", "motion_cases", "orthoglide", "switc
 
 _EYE = jnp.eye(3)
 # A_i - B_i = l * _SLIDER_DIRECTIONS[i]  (§2.2: A_1 = (ρ_x + l, 0, l), …)
-COUNTER_SLIDERS = ("counter_slider_x", "counter_slider_y", "counter_slider_z")
 _SLIDER_DIRECTIONS = jnp.array([[1.0, 0.0, 1.0], [1.0, 1.0, 0.0], [0.0, 1.0, 1.0]])
 
 
@@ -339,56 +338,10 @@ class Orthoglide(Robot):
         q = jnp.concatenate([rho, p])
         return (q, valid) if return_valid else q
 
-    # --- MuJoCo --------------------------------------------------------------------
-
     def mujoco_tree(self) -> Tree:
-        """Three sliders, each carrying a parallelogram (a slender bar, on a ball joint at
-        B_i) whose far end is ``connect``-ed to the translating platform P; the
-        counter-sliders on their own slides (coordinate ``−ρ_i``).
-
-        The parallelogram's orientation is the minimal rotation taking the home
-        direction ``−e_i`` onto ``(P − B_i)/|P − B_i|`` (as :meth:`body_frames`; the bar
-        has no axial inertia, so the twist about its axis carries no momentum).
-        """
-        length = float(self.length)
-        eye = np.eye(3)
-        bodies, connects = [], []
-        for i, axis in enumerate("xyz"):
-            slide = Joint(f"rho_{axis}", "slide", vec(eye[i]))
-            bodies += [
-                TreeBody(f"slider_{axis}", None, joints=(slide,)),
-                TreeBody(
-                    f"parallelogram_{axis}",
-                    f"slider_{axis}",
-                    joints=(Joint(f"leg_{axis}", "ball"),),
-                    visual_to=vec(-length * eye[i]),
-                ),
-            ]
-            end = vec(-length * eye[i])
-            connects.append(Connect(f"parallelogram_{axis}", end, "platform", (0.0, 0.0, 0.0)))
-        platform = tuple(Joint(f"p_{a}", "slide", vec(eye[i])) for i, a in enumerate("xyz"))
-        bodies += [TreeBody("platform", None, joints=platform), TreeBody("payload", "platform")]
-        bodies += [
-            TreeBody(name, None, joints=(Joint(f"{name}_slide", "slide", vec(eye[i])),))
-            for i, name in enumerate(COUNTER_SLIDERS)
-        ]
-        return Tree(
-            bodies=tuple(bodies),
-            coordinates=_mujoco_coordinates,
-            connects=tuple(connects),
-            actuated=("rho_x", "rho_y", "rho_z"),
-        )
-
-
-def _mujoco_coordinates(q):
-    """MuJoCo's ``qpos = (ρ_i, Q_i per leg, p, −ρ)``, ``Q_i`` the minimal rotation
-    ``−e_i → P − B_i`` (quaternion)."""
-    rho, p = q[:3], q[3:]
-    eye = jnp.eye(3)
-    pieces = []
-    for i in range(3):
-        pieces += [rho[i : i + 1], minimal_rotation_quat(-eye[i], p - rho[i] * eye[i])]
-    return jnp.concatenate(pieces + [p, -rho])
+        """Sliders, parallelograms on ball joints closed by ``connect`` at P, the
+        platform and the counter-sliders (see :func:`orthoglide_tree`)."""
+        return orthoglide_tree(self)
 
 
 def orthoglide(payload: float = 0.0, **overrides) -> Orthoglide:
