@@ -12,6 +12,7 @@ from jaxbal.design import (
     Motion,
     added_inertia,
     added_mass,
+    as_motion,
     codesign,
     motion_samples,
     rms_force,
@@ -196,6 +197,8 @@ def test_motion_samples_stacks_and_checks_loop_closures(motion_2r):
     q_home = robot.inverse_kinematics(jnp.zeros(3))
     with pytest.raises(ValueError, match="loop closures"):
         motion_samples(robot, lambda t: q_home.at[0].add(1e-3 + 0.0 * t), jnp.zeros(1))
+    single = motion_samples(arm, line, [float(t) for t in times])
+    assert as_motion([single, single]).q.shape == (2 * SAMPLES, 2)
     with pytest.raises(ValueError, match="time arrays"):
         motion_samples(arm, [line, line], [times])
 

@@ -32,7 +32,7 @@ References:
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from typing import NamedTuple
 
 import equinox as eqx
@@ -108,8 +108,8 @@ def motion_samples(robot: Robot, trajectories, times) -> Motion:
         robot: the robot the trajectories belong to (for the loop-closure check).
         trajectories: a callable ``t ↦ q`` (coordinates of all bodies), or a sequence
             of them.
-        times: ``(t,)`` instants [s], shared by every trajectory, or a sequence with
-            one array per trajectory.
+        times: ``(t,)`` instants [s], shared by every trajectory, or a list with one
+            array per trajectory.
 
     Returns:
         A :class:`Motion` with ``Σ t_k`` rows, in the order of the trajectories.
@@ -123,7 +123,7 @@ def motion_samples(robot: Robot, trajectories, times) -> Motion:
     trajectories = list(trajectories)
     if not trajectories:
         raise ValueError("motion_samples needs at least one trajectory")
-    if isinstance(times, Sequence) and not isinstance(times, str):
+    if isinstance(times, list | tuple) and times and np.ndim(times[0]) >= 1:
         times = [jnp.asarray(t, dtype=float) for t in times]
         if len(times) != len(trajectories):
             raise ValueError(f"got {len(times)} time arrays for {len(trajectories)} trajectories")
