@@ -1,14 +1,11 @@
-"""The robot abstraction shared by every robot in jaxbal.
+"""The robot contract shared by every robot in jaxbal (:class:`Robot`).
 
 A robot is an immutable :class:`equinox.Module` pytree. Its array fields (masses,
 lengths, inertias, payload, counter-masses) are differentiable leaves; names, counts
-and joint types are static fields. Every robot exposes the same two methods, and
-*nothing else* is needed by the shared physics (:mod:`jaxbal.momentum`,
-:mod:`jaxbal.dynamics`):
-
-* :meth:`Robot.mass_properties` -- the rigid bodies it is made of (payload and
-  counter-masses included), as a :class:`Bodies` pytree;
-* :meth:`Robot.body_frames` -- the pose of every body frame for coordinates ``q``.
+and joint types are static. The shared physics (:mod:`jaxbal._src.momentum`,
+:mod:`jaxbal._src.dynamics`) needs only :meth:`Robot.mass_properties` and
+:meth:`Robot.body_frames`; planning, co-design, sensitivity, sweeps and the MuJoCo
+checks use the rest of the contract, documented on :class:`Robot` -- and nothing else.
 
 Conventions (all robots):
 
@@ -16,6 +13,9 @@ Conventions (all robots):
 * The base frame is the world frame; every vector is expressed in it.
 * ``q`` is the vector of coordinates of all bodies. For serial arms it is the joint
   vector; for parallel robots it is what their inverse kinematics returns.
+* Validation: shapes and names are checked at trace time (``ValueError``); values
+  (negative masses, unreachable poses) eagerly with a ``ValueError`` naming the value,
+  or through ``return_valid`` masks in batched code.
 """
 
 from __future__ import annotations
