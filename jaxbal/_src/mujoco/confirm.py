@@ -17,6 +17,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._src.linalg import vee
 from jaxbal._src.momentum import shaking_wrench
 from jaxbal._src.motion import state_valid
 from jaxbal._src.mujoco.inverse import mjx_base_reaction, mjx_model, mujoco_base_reaction
@@ -78,8 +79,7 @@ def _gross_scales(robot: Robot, q, qd, qdd, g):
             return origins + jnp.einsum("nij,nj->ni", rotations, bodies.com), rotations
 
         (c, r), (v, rdot) = jax.jvp(poses, (q_,), (qd_,))
-        skew = jnp.einsum("nij,nkj->nik", rdot, r)
-        omega = jnp.stack([skew[:, 2, 1], skew[:, 0, 2], skew[:, 1, 0]], -1)
+        omega = vee(jnp.einsum("nij,nkj->nik", rdot, r))
         inertia = jnp.einsum("nij,njk,nlk->nil", r, bodies.inertia, r)
         p = bodies.mass[:, None] * v
         return p, jnp.cross(c, p) + jnp.einsum("nij,nj->ni", inertia, omega), c
