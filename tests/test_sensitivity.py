@@ -43,7 +43,7 @@ def _scara():
     move = jaxbal.robots.PickAndPlace(
         [0.15, 0.2, np.deg2rad(83.0)], [-0.15, 0.2, np.deg2rad(157.0)], 0.3, lift=0.03
     )
-    trajectory = jaxbal.robots.joint_trajectory(robot, move)
+    trajectory = jaxbal.robots.ScaraTrajectory(robot, move)  # reachable: see test_design
     return robot, motion_samples(robot, trajectory, jnp.linspace(0.0, 0.3, SAMPLES))
 
 

@@ -258,7 +258,9 @@ def codesign(
             :func:`~jaxbal.design.motion_samples`), a ``(q, q̇, q̈)`` tuple, or a list
             of them (several trajectories, concatenated in time).
         objective: a metric name (:data:`~jaxbal.design.METRICS`), a callable
-            ``(robot, motion) -> scalar``, or a dict ``{metric: weight}``.
+            ``(robot, motion) -> scalar``, or a dict ``{metric: weight}`` (a weight of
+            0 only reports the metric in ``metrics``). Peaks are maxima over time, not
+            smooth: L-BFGS lowers them but may stop unconverged; RMS metrics are smooth.
         free: names of the design variables to optimise; default all but ``payload``.
         lower: lower bounds by name (scalar or the variable's shape), overriding
             :meth:`~jaxbal.Robot.design_lower_bounds` (masses and distances: 0).
