@@ -12,7 +12,6 @@ from jaxbal.robots import CROSSED, OUTWARD, dual_v
 from jaxbal.robots.dual_v_dynamics import (
     base_wrench_from_bearings,
     bearing_forces,
-    joint_motion,
     paper_torques,
     torque_split,
     virtual_work_torques,
@@ -32,7 +31,7 @@ def test_ik_round_trip_and_loop_closure(branch):
     elbow signs are the requested branch."""
     robot = dual_v()
     for pose in POSES:
-        q = robot.inverse_kinematics(pose, branch)
+        q = robot.inverse_kinematics(pose, branch=branch)
         np.testing.assert_allclose(robot.constraint(q), 0.0, atol=1e-12)
         np.testing.assert_allclose(q[8:], pose, atol=0)
         np.testing.assert_array_equal(np.sign(np.sin(q[4:8] - q[0:4])), branch)
@@ -67,6 +66,28 @@ def test_out_of_workspace_raises():
         dual_v().inverse_kinematics(jnp.array([0.0, 0.0]))
 
 
+@pytest.mark.parametrize("bad", [2, 0, (1, -1, 1), (1, -1, 1, -1, 1), (1, 2, 1, -1)])
+def test_invalid_branch_raises(bad):
+    """A sign other than ±1 or a tuple not of four signs raises ValueError (structure
+    error, at trace time), also through pose_motion and return_valid=True."""
+    robot = dual_v()
+    with pytest.raises(ValueError, match="branch"):
+        robot.inverse_kinematics(POSES[1], branch=bad)
+    with pytest.raises(ValueError, match="branch"):
+        robot.inverse_kinematics(POSES[1], branch=bad, return_valid=True)
+    with pytest.raises(ValueError, match="branch"):
+        jaxbal.pose_motion(robot, *MOTION, branch=bad)
+
+
+def test_int_branch_means_all_signs():
+    """branch=-1 is (-1, -1, -1, -1): the same q as the explicit tuple (exact)."""
+    robot = dual_v()
+    np.testing.assert_array_equal(
+        robot.inverse_kinematics(POSES[1], branch=-1),
+        robot.inverse_kinematics(POSES[1], branch=(-1, -1, -1, -1)),
+    )
+
+
 def test_negative_mass_raises():
     robot = dual_v()
     with pytest.raises(ValueError, match="non-negative"):
@@ -78,8 +99,8 @@ def test_jacobian_eq9_matches_autodiff():
     robot = dual_v()
     for pose in POSES:
         for branch in (OUTWARD, CROSSED):
-            q = robot.inverse_kinematics(pose, branch)
-            auto = jax.jacfwd(lambda u, b=branch: robot.inverse_kinematics(u, b))(pose)[:4]
+            q = robot.inverse_kinematics(pose, branch=branch)
+            auto = jax.jacfwd(lambda u, b=branch: robot.inverse_kinematics(u, branch=b))(pose)[:4]
             np.testing.assert_allclose(robot.jacobian(q), auto, atol=1e-12)
 
 
@@ -92,7 +113,7 @@ def test_condition_number_at_centre():
 
 @eqx.filter_jit
 def _wrench(robot, pose, velocity, acceleration, branch=OUTWARD):
-    q, qd, qdd = joint_motion(robot, pose, velocity, acceleration, branch)
+    q, qd, qdd = jaxbal.pose_motion(robot, pose, velocity, acceleration, branch=branch)
     return jaxbal.shaking_wrench(robot, q, qd, qdd)
 
 
@@ -151,7 +172,7 @@ def test_ik_gradients_finite_and_correct():
 
 @eqx.filter_jit
 def _three_torques(robot):
-    q, _, _ = joint_motion(robot, *MOTION)
+    q, _, _ = jaxbal.pose_motion(robot, *MOTION)
     tau_paper = paper_torques(robot, q, MOTION[1], MOTION[2])
     tau_vw = virtual_work_torques(robot, *MOTION)
     same_split = virtual_work_torques(robot, *MOTION, distribution="paper")
@@ -186,7 +207,7 @@ def test_forward_dynamics_inverts_paper_model():
 
     @eqx.filter_jit
     def round_trip(robot):
-        q, qd, qdd = joint_motion(robot, *motion)
+        q, qd, qdd = jaxbal.pose_motion(robot, *motion)
         tau = paper_torques(robot, q, motion[1], motion[2])
         return qdd, forward_accelerations(robot, q, qd, tau)[0]
 
@@ -197,7 +218,7 @@ def test_forward_dynamics_inverts_paper_model():
 def test_bearing_forces_sum_to_shaking_wrench():
     """Σ(-F_A,i) = shaking force and Σ A_i×(-F_A,i) - Στ = shaking moment (tol 1e-9)."""
     robot = dual_v()
-    q, qd, qdd = joint_motion(robot, *MOTION)
+    q, qd, qdd = jaxbal.pose_motion(robot, *MOTION)
     tau = paper_torques(robot, q, MOTION[1], MOTION[2])
     force, moment = base_wrench_from_bearings(robot, bearing_forces(robot, *MOTION, tau), tau)
     f_ref, m_ref = jaxbal.shaking_wrench(robot, q, qd, qdd)
@@ -266,7 +287,7 @@ def test_codesign_recovers_eq1():
     )
 
     robot = dual_v()
-    motion = jax.vmap(lambda a, b, c: joint_motion(robot, a, b, c))(*_triangle(5))
+    motion = jax.vmap(lambda a, b, c: jaxbal.pose_motion(robot, a, b, c))(*_triangle(5))
     start = (jnp.log(jnp.full(4, 4.0)), jnp.log(jnp.full(4, 0.05)))
     solution = minimize(
         codesign_loss, start, max_steps=300, gtol=1e-13, args=(robot, motion, jnp.asarray(0.0))
