@@ -2,7 +2,8 @@
 
 Reference: MuJoCo's recursive Newton-Euler inverse dynamics (``mj_inverse``,
 ``mjx.inverse``) on models whose kinematics come from each robot's own geometric
-parameters (:mod:`jaxbal.mjx_trees`), not from jaxbal's ``body_frames``.
+parameters (each robot's :meth:`~jaxbal.Robot.mujoco_tree`), not from jaxbal's
+``body_frames``.
 Tolerances: 1e-9 relative for every robot (trees and closed chains alike; both sides
 are exact to round-off and agree to ~1e-14 -- the margin covers MuJoCo's 1e-14
 inertia floor on point masses with joints).
@@ -16,21 +17,20 @@ import numpy as np
 import pytest
 
 import jaxbal
-from jaxbal.mujoco import export_mjcf, robot_tree, to_mjcf
 from jaxbal.mujoco import (
     confirm,
+    export_mjcf,
     mjx_base_reaction,
     mjx_model,
+    mujoco_actuator_efforts,
     mujoco_base_reaction,
     mujoco_inverse,
     mujoco_model,
+    prescribed_tree,
+    simulate_open_loop,
+    to_mjcf,
 )
-from jaxbal.mujoco import mujoco_actuator_efforts, simulate_open_loop
-from jaxbal.mujoco import prescribed_tree
-from jaxbal.robots import dual_v
-from jaxbal.robots.orthoglide_planning import orthoglide
-from jaxbal.robots.planar_arm import PlanarArm, planar_2r, planar_3r
-from jaxbal.robots import Scara
+from jaxbal.robots import PlanarArm, Scara, by_name, dual_v, orthoglide, planar_2r, planar_3r
 
 GRAVITY = np.array([0.3, -1.0, -9.81])
 TOL = 1e-9
@@ -268,11 +268,11 @@ def test_mjcf_export_loads_with_masses_and_actuators():
     assert model.nu == 3 and model.nv == 6 + 3
     assert model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
     np.testing.assert_array_equal(model.opt.gravity, GRAVITY)
-    assert len(robot_tree(robot).bodies) == len(bodies.names)
-    for name in ("2r", "3r", "scara", "dual-v", "orthoglide"):
-        model = mujoco.MjModel.from_xml_string(export_mjcf(name))
+    assert len(robot.mujoco_tree().bodies) == len(bodies.names)
+    for name in ("planar_2r", "planar_3r", "scara", "dual_v", "orthoglide"):
+        model = mujoco.MjModel.from_xml_string(export_mjcf(by_name(name)))
         assert model.nu > 0 and model.jnt_type.size > 0
-    assert mujoco.MjModel.from_xml_string(export_mjcf("dual-v")).neq == 4
+    assert mujoco.MjModel.from_xml_string(export_mjcf(dual_v())).neq == 4
 
 
 def test_bad_input_raises_and_massless_link_is_handled():
@@ -284,7 +284,7 @@ def test_bad_input_raises_and_massless_link_is_handled():
     with pytest.raises(ValueError, match="shape"):
         mujoco_base_reaction(robot, np.zeros(2), np.zeros(3), np.zeros(2))
     with pytest.raises(ValueError, match="unknown robot"):
-        export_mjcf("hexapod")
+        by_name("hexapod")
     with pytest.raises(ValueError, match="engine"):
         confirm(robot, np.zeros(2), np.zeros(2), np.zeros(2), engine="bullet")
     massless = PlanarArm([0.5, 0.3], [0.3, 0.1], [0.0, 8.3], [0.0, 0.05], payload=1.0)
