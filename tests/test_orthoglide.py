@@ -9,10 +9,9 @@ from jax.test_util import check_grads
 
 import jaxbal
 from jaxbal import newton_solve
-from jaxbal.planning import ComLine, EndEffectorLine
+from jaxbal.planning import ComLine, EndEffectorLine, shaking_peaks
 from jaxbal.profiles import BangBang, Quintic
 from jaxbal.robots import orthoglide
-from jaxbal.planning import shaking_peaks
 from jaxbal.robots.orthoglide_planning import motion_cases, switching_times
 
 P_START = jnp.zeros(3)
@@ -116,12 +115,57 @@ def test_bad_input_raises():
         robot.inverse_kinematics(jnp.zeros(2))
     with pytest.raises(ValueError, match="non-negative"):
         orthoglide(payload=-1.0)
-    with pytest.raises(ValueError, match="mode"):
-        robot.inverse_kinematics(P_START, mode=0)
+    with pytest.raises(ValueError, match="branch"):
+        robot.inverse_kinematics(P_START, branch=0)
     with pytest.raises(ValueError, match="not assemblable"):
         robot.forward_kinematics(jnp.array([0.9, 0.1, 0.1]))
     with pytest.raises(ValueError, match="COM target not reachable"):
         robot.com_inverse_kinematics(jnp.array([1.0, 1.0, 1.0]))
+
+
+@pytest.mark.parametrize("bad", [2, 0, -2, (1, 1), (1, 1, 1, 1), (1, 0, 1), "up"])
+def test_invalid_branch_raises(bad):
+    # reference: the contract -- a sign other than ±1 or a tuple not of 3 signs is a
+    # structure error (ValueError), for the IK, the COM IK and with return_valid=True
+    robot = orthoglide()
+    with pytest.raises(ValueError, match="branch"):
+        robot.inverse_kinematics(P_END, branch=bad)
+    with pytest.raises(ValueError, match="branch"):
+        robot.inverse_kinematics(P_END, branch=bad, return_valid=True)
+    with pytest.raises(ValueError, match="branch"):
+        robot.com_inverse_kinematics(robot.com_of_point(P_END), branch=bad)
+
+
+def test_branch_selects_the_configuration_index_of_eq1():
+    # reference: eq (1) by hand, ρ_i = p_i + s_i sqrt(L² − p_j² − p_k²) (tol 1e-15 m);
+    # an int branch means the same sign on every leg
+    robot = orthoglide()
+    branch = (1, -1, 1)
+    rho = robot.inverse_kinematics(P_END, branch=branch)[:3]
+    radicands = L**2 - (np.sum(np.asarray(P_END) ** 2) - np.asarray(P_END) ** 2)
+    np.testing.assert_allclose(rho, P_END + np.array(branch) * np.sqrt(radicands), atol=1e-15)
+    np.testing.assert_array_equal(
+        robot.inverse_kinematics(P_END, branch=-1),
+        robot.inverse_kinematics(P_END, branch=(-1, -1, -1)),
+    )
+
+
+def test_return_valid_never_raises_on_unreachable_pose():
+    # reference: the contract -- with return_valid=True an unreachable pose gives
+    # valid=False and a finite q, eagerly, under jit and under vmap (no exception)
+    robot = orthoglide()
+    unreachable = jnp.array([0.0, 0.25, 0.25])  # |p_⊥| > L for the x leg
+    for branch in (None, -1, (1, -1, 1)):
+        q, valid = robot.inverse_kinematics(unreachable, branch=branch, return_valid=True)
+        assert not bool(valid) and bool(jnp.all(jnp.isfinite(q)))
+    q, valid = jax.jit(lambda p: robot.inverse_kinematics(p, return_valid=True))(unreachable)
+    assert not bool(valid) and bool(jnp.all(jnp.isfinite(q)))
+    poses = jnp.stack([P_START, unreachable, P_END, jnp.full(3, jnp.nan)])
+    q, valid = jax.vmap(lambda p: robot.inverse_kinematics(p, return_valid=True))(poses)
+    assert valid.tolist() == [True, False, True, False]
+    np.testing.assert_allclose(q[2], robot.inverse_kinematics(P_END), atol=1e-15)
+    _, valid = robot.com_inverse_kinematics(jnp.ones(3), return_valid=True)
+    assert not bool(valid)
 
 
 # --- COM inverse kinematics ---------------------------------------------------------------
