@@ -39,6 +39,7 @@ from jaxbal._src.motion import (
 from jaxbal._src.optimize import Solution, minimize
 from jaxbal._src.robot import Bodies, Robot
 from jaxbal._src.trajectory import StraightLine, sample, sample_times, time_derivatives
+from jaxbal._src.validation import runtime_checks, set_runtime_checks
 
 __version__ = "0.2.0"
 
@@ -83,9 +84,11 @@ __all__ = [
     "profiles",
     "report",
     "robots",
+    "runtime_checks",
     "sample",
     "sample_times",
     "sensitivity",
+    "set_runtime_checks",
     "shaking_wrench",
     "state_valid",
     "time_derivatives",

@@ -63,6 +63,7 @@ from jaxbal._src.momentum import total_mass
 from jaxbal._src.optimize import minimize
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
+from jaxbal._src.validation import runtime_checks
 
 __all__ = [
     "CONSTRAINT_PENALTY",
@@ -333,14 +334,15 @@ def codesign(
         bound_scales=bound_scales,
         penalty=jnp.asarray(penalty, dtype=float),
     )
-    solution = minimize(
-        design_loss,
-        _to_params(x0, problem),
-        optimizer=optimizer,
-        max_steps=max_steps,
-        gtol=gtol,
-        args=(robot, motion, problem),
-    )
+    with runtime_checks(False):  # line-search trials may be non-finite (see validation)
+        solution = minimize(
+            design_loss,
+            _to_params(x0, problem),
+            optimizer=optimizer,
+            max_steps=max_steps,
+            gtol=gtol,
+            args=(robot, motion, problem),
+        )
     optimised = robot.with_design(_to_design(solution.params, problem))
     after, _ = _evaluate(optimised, motion, everything)
     n = len(terms)

@@ -24,6 +24,37 @@ from jaxbal._src.linalg import cross, matmul_transposed, matvec, rmatvec, vee, w
 from jaxbal._src.planar import PlanarRobot, planar_inertial_wrench
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Coordinates, Points, Rotations, Scalar, Vec3
+from jaxbal._src.validation import check_shape, guard
+
+#: Tolerance of the sign checks [kg, kg·m²]: derived masses and inertias that are zero
+#: up to rounding (e.g. ``I + m p² − m p²``) are accepted.
+ROUNDING = 1e-12
+
+
+def checked_state(robot: Robot, q, qd, qdd):
+    """``(q, q̇, q̈)`` as float arrays, shape-checked ``(dof,)`` and checked finite."""
+    q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
+    for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
+        check_shape(name, value, (robot.dof,))
+    state = jnp.stack([q, qd, qdd])
+    state = guard(state, ~jnp.isfinite(state), "non-finite state (q, qd, qdd)", state)
+    return state[0], state[1], state[2]
+
+
+def checked_bodies(robot: Robot, value):
+    """``value``, guarded by the robot's mass properties as the physics sees them: every
+    body mass and inertia diagonal finite and ≥ 0 (derived masses included, e.g. the
+    DUAL-V's brass counter-mass ``m_cm − m_tun``), to :data:`ROUNDING` (a derived
+    quantity that is zero up to rounding passes)."""
+    bodies = robot.mass_properties()
+    diagonal = jnp.diagonal(bodies.inertia, axis1=-2, axis2=-1)
+    bad_mass = ~(jnp.isfinite(bodies.mass) & (bodies.mass >= -ROUNDING))
+    finite = jnp.all(jnp.isfinite(bodies.inertia), axis=(-2, -1))
+    bad_inertia = ~finite | jnp.any(diagonal < -ROUNDING, -1)
+    message = "body masses must be finite and >= 0 [kg]"
+    value = guard(value, bad_mass, message, bodies.mass, bodies.names)
+    message = "body inertias must be finite with diagonal >= 0 [kg m^2]"
+    return guard(value, bad_inertia, message, diagonal, bodies.names)
 
 
 def total_mass(robot: Robot) -> Scalar:
@@ -119,16 +150,24 @@ def shaking_wrench(
     Returns:
         ``(force (3,) [N], moment (3,) [N·m])``. One sample; batch with ``jax.vmap``.
 
+    Raises:
+        ValueError: a wrong shape of ``q``, ``qd``, ``qdd`` or ``gravity`` (at trace
+            time); eagerly, a non-finite state or a negative/non-finite body mass or
+            inertia (a robot changed with ``eqx.tree_at`` included). Under ``jit`` the
+            same value checks raise at run time (:func:`jaxbal.set_runtime_checks`).
+
     References:
         Briot et al. (2012), eq (1); van der Wijk et al. (2013), section 2.
     """
-    q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
+    q, qd, qdd = checked_state(robot, q, qd, qdd)
     if isinstance(robot, PlanarRobot):
         force, moment = planar_inertial_wrench(robot, q, qd, qdd)
     else:
         force, moment = inertial_wrench(robot, q, qd, qdd)
+    force = checked_bodies(robot, force)
     if gravity is not None:
         g = jnp.asarray(gravity, dtype=float)
+        check_shape("gravity", g, (3,))
         bodies = robot.mass_properties()
         positions = body_com_positions(robot, q)
         force = force + jnp.sum(bodies.mass) * g

@@ -189,7 +189,6 @@ class Robot(eqx.Module):
             )
         return signs
 
-    @abc.abstractmethod
     def inverse_kinematics(self, pose, *, branch=None, return_valid: bool = False):
         """Coordinates ``q (dof,)`` of all bodies for an end-effector ``pose``.
 
@@ -204,10 +203,11 @@ class Robot(eqx.Module):
             ValueError: eagerly (``return_valid=False``), naming the pose, when it is
                 out of reach.
         """
+        raise NotImplementedError(f"{type(self).__name__} has no inverse kinematics")
 
-    @abc.abstractmethod
     def end_effector(self, q: Coordinates):
         """The end-effector pose for the coordinates ``q`` (what IK takes)."""
+        raise NotImplementedError(f"{type(self).__name__} has no end-effector pose")
 
     # --- closed chains --------------------------------------------------------------
 

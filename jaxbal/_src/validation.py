@@ -7,6 +7,9 @@ or use :func:`equinox.error_if`, which raises at run time with a static message.
 
 from __future__ import annotations
 
+import contextlib
+
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -61,3 +64,60 @@ def raise_if_invalid(valid, message: str, offending) -> None:
         elif valid.ndim:
             off = off[~valid]
         raise ValueError(f"{message}: {off!r}")
+
+
+# --- runtime value checks (eager and under jit) ---------------------------------------
+
+_RUNTIME_CHECKS = [True]
+
+
+def set_runtime_checks(enabled: bool) -> None:
+    """Turn the value checks that run inside compiled code on (default) or off.
+
+    The checks (finite, non-negative body masses and inertias, finite states) cost a
+    few comparisons per evaluation; they are read when a function is traced, so call
+    this *before* compiling. Eager calls always check.
+    """
+    _RUNTIME_CHECKS[0] = bool(enabled)
+
+
+def runtime_checks_enabled() -> bool:
+    """Whether compiled code checks values (see :func:`set_runtime_checks`)."""
+    return _RUNTIME_CHECKS[0]
+
+
+def guard(value, invalid, message: str, offending, names=None):
+    """Return ``value``, checked: where ``invalid`` (a boolean array) is True, raise.
+
+    Eagerly a ``ValueError`` naming the offending entries (and their ``names``, if given);
+    under ``jit``/``vmap`` an :func:`equinox.error_if` runtime error carrying ``message``
+    (the data dependency on ``value`` keeps the check in the compiled graph).
+    """
+    if not is_traced(invalid, offending):
+        bad = np.asarray(invalid)
+        if np.any(bad):
+            off = np.asarray(offending)
+            if names is not None and bad.ndim == 1 and len(names) == bad.size:
+                listed = {n: off[i].tolist() for i, n in enumerate(names) if bad[i]}
+                raise ValueError(f"{message}: {listed}")
+            raise ValueError(f"{message}: {off[bad] if off.shape == bad.shape else off!r}")
+        return value
+    if not runtime_checks_enabled():
+        return value
+    return eqx.error_if(value, jnp.any(invalid), message)
+
+
+@contextlib.contextmanager
+def runtime_checks(enabled: bool):
+    """Context manager: runtime value checks on/off while tracing inside the block.
+
+    Optimisers use ``runtime_checks(False)``: their line searches may try non-finite
+    points on purpose (and reject them), while the reparametrised design variables
+    cannot become negative; the starting design is checked before.
+    """
+    previous = _RUNTIME_CHECKS[0]
+    _RUNTIME_CHECKS[0] = bool(enabled)
+    try:
+        yield
+    finally:
+        _RUNTIME_CHECKS[0] = previous
