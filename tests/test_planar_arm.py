@@ -14,6 +14,7 @@ from jax.test_util import check_grads
 import jaxbal
 from jaxbal.planning import ComLine, com_line
 from jaxbal.profiles import BangBang
+from jaxbal.robots.planar_arm import force_balanced
 
 RNG = np.random.default_rng(0)
 
@@ -199,10 +200,10 @@ def test_com_ik_round_trip_and_modes(arm):
     """eqs (8)-(12): both working modes reach the same COM; '+' gives q2 < 0 here."""
     q = jnp.array([1.2, -0.8])
     com = jaxbal.center_of_mass(arm, q)[:2]
-    for mode in (1, -1):
-        q_mode = arm.com_inverse_kinematics(com, mode=mode)
-        np.testing.assert_allclose(jaxbal.center_of_mass(arm, q_mode)[:2], com, atol=1e-13)
-    np.testing.assert_allclose(arm.com_inverse_kinematics(com, mode=1), q, atol=1e-12)
+    for branch in (1, -1):
+        q_branch = arm.com_inverse_kinematics(com, branch=branch)
+        np.testing.assert_allclose(jaxbal.center_of_mass(arm, q_branch)[:2], com, atol=1e-13)
+    np.testing.assert_allclose(arm.com_inverse_kinematics(com, branch=1), q, atol=1e-12)
 
 
 def test_com_ik_eq10_literal(arm):
@@ -212,7 +213,7 @@ def test_com_ik_eq10_literal(arm):
     a, b = -2 * l_eq[0] * com[0], -2 * l_eq[0] * com[1]
     c = jnp.sum(com**2) + l_eq[0] ** 2 - l_eq[1] ** 2
     q1 = 2 * jnp.arctan((-b + jnp.sqrt(b**2 - c**2 + a**2)) / (c - a))
-    np.testing.assert_allclose(arm.com_inverse_kinematics(com, mode=1)[0], q1, rtol=1e-12)
+    np.testing.assert_allclose(arm.com_inverse_kinematics(com, branch=1)[0], q1, rtol=1e-12)
 
 
 def test_3r_com_ik_round_trip():
@@ -220,7 +221,7 @@ def test_3r_com_ik_round_trip():
     q = jnp.array([0.9, -1.1, 0.7])
     com = jaxbal.center_of_mass(arm, q)[:2]
     phi = jnp.sum(q)
-    np.testing.assert_allclose(arm.com_inverse_kinematics(com, phi, mode=1), q, atol=1e-12)
+    np.testing.assert_allclose(arm.com_inverse_kinematics(com, phi, branch=1), q, atol=1e-12)
     with pytest.raises(ValueError, match="free angle"):
         arm.com_inverse_kinematics(com)
 
@@ -251,7 +252,50 @@ def test_end_effector_ik_round_trip():
     arm = jaxbal.robots.planar_3r()
     q = jnp.array([0.4, -1.3, 0.5])
     pose = arm.end_effector(q)
-    np.testing.assert_allclose(arm.inverse_kinematics(pose, mode=-1), q, atol=1e-12)
+    np.testing.assert_allclose(arm.inverse_kinematics(pose, branch=-1), q, atol=1e-12)
+
+
+def test_end_effector_pose_shapes():
+    """The 2R's end effector is the tip (x, y); the 3R's is (x, y, φ) with φ = Σq
+    (closed form: the tip of the unit-angle chain, 1e-15 m)."""
+    arm2, arm3 = jaxbal.robots.planar_2r(), jaxbal.robots.planar_3r()
+    q2, q3 = jnp.array([0.4, -1.3]), jnp.array([0.4, -1.3, 0.5])
+    l1, l2 = 0.5, 0.3
+    tip = [l1 * np.cos(0.4) + l2 * np.cos(-0.9), l1 * np.sin(0.4) + l2 * np.sin(-0.9)]
+    np.testing.assert_allclose(arm2.end_effector(q2), tip, atol=1e-15)
+    assert arm3.end_effector(q3).shape == (3,)
+    np.testing.assert_allclose(arm3.end_effector(q3)[2], -0.4, atol=1e-15)
+
+
+@pytest.mark.parametrize("maker", [jaxbal.robots.planar_2r, jaxbal.robots.planar_3r])
+@pytest.mark.parametrize("bad", [2, 0, -3, (1, 1), (), (0,), "up"])
+def test_invalid_branch_raises(maker, bad):
+    """A sign other than ±1 or a tuple not of one sign is a structure error
+    (ValueError) for the IK, the COM IK, EndEffectorLine and with return_valid=True."""
+    arm = maker()
+    q = jnp.array([0.4, -1.3, 0.5])[: arm.dof]
+    pose = arm.end_effector(q)
+    com = jaxbal.center_of_mass(arm, q)[:2]
+    free = None if arm.dof == 2 else pose[2]
+    with pytest.raises(ValueError, match="branch"):
+        arm.inverse_kinematics(pose, branch=bad)
+    with pytest.raises(ValueError, match="branch"):
+        arm.inverse_kinematics(pose, branch=bad, return_valid=True)
+    with pytest.raises(ValueError, match="branch"):
+        arm.com_inverse_kinematics(com, free, branch=bad)
+    line = jaxbal.StraightLine(pose, pose, jaxbal.profiles.Quintic(), 0.5)
+    with pytest.raises(ValueError, match="branch"):
+        jaxbal.planning.EndEffectorLine(arm, line, branch=bad)(0.1)
+
+
+def test_branch_tuple_equals_int():
+    """branch=(−1,) is branch=−1 (exact), and the elbow sign is sin q2's (Briot §3.1)."""
+    arm = jaxbal.robots.planar_2r()
+    pose = jnp.array([0.3, 0.5])
+    for sign in (1, -1):
+        q = arm.inverse_kinematics(pose, branch=sign)
+        np.testing.assert_array_equal(q, arm.inverse_kinematics(pose, branch=(sign,)))
+        assert np.sign(np.sin(q[1])) == sign
 
 
 def test_bang_bang_com_plan_gives_constant_force(arm):
@@ -277,9 +321,9 @@ def test_grad_of_peak_force_wrt_payload_through_planner():
             base.lengths, base.com_ratios, base.masses, base.inertias, payload
         )
         line = jaxbal.StraightLine(
-            arm.end_effector(q0)[:2], arm.end_effector(q1)[:2], jaxbal.profiles.Quintic(), 0.5
+            arm.end_effector(q0), arm.end_effector(q1), jaxbal.profiles.Quintic(), 0.5
         )
-        path = jaxbal.planning.EndEffectorLine(arm, line, mode=-1)
+        path = jaxbal.planning.EndEffectorLine(arm, line, branch=-1)
         return jaxbal.planning.peak_norm(jaxbal.planning.wrench_along(arm, path, times)[0])
 
     grad = jax.grad(peak)(5.0)
@@ -306,15 +350,15 @@ def test_compiles_once_per_structure():
 def test_force_balanced_arm_has_zero_shaking_force():
     """Counterweights from the closed form keep the COM at O: f_sh = 0 (1e-12 N) for any
     motion, while the moment does not vanish (Briot et al. 2012, §3.3)."""
-    arm = jaxbal.robots.planar_arm.force_balanced(jaxbal.robots.planar_2r(), [0.35, 0.2])
+    arm = force_balanced(jaxbal.robots.planar_2r(), [0.35, 0.2])
     np.testing.assert_allclose(arm.equivalent_lengths(), 0.0, atol=1e-15)
     qs, qds, qdds = random_states(10, 2)
     force, moment = jax.vmap(lambda *s: jaxbal.shaking_wrench(arm, *s))(qs, qds, qdds)
     np.testing.assert_allclose(force, 0.0, atol=1e-11)
     assert float(jnp.max(jnp.abs(moment))) > 1.0
-    grad = jax.grad(
-        lambda d: jnp.sum(jaxbal.robots.planar_arm.force_balanced(arm, d).counter_masses)
-    )(jnp.array([0.35, 0.2]))
+    grad = jax.grad(lambda d: jnp.sum(force_balanced(arm, d).counter_masses))(
+        jnp.array([0.35, 0.2])
+    )
     assert bool(jnp.all(jnp.isfinite(grad))) and bool(jnp.all(grad < 0))
     with pytest.raises(ValueError, match="positive"):
-        jaxbal.robots.planar_arm.force_balanced(arm, [0.35, -0.2])
+        force_balanced(arm, [0.35, -0.2])
