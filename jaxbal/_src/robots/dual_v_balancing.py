@@ -33,8 +33,11 @@ __all__ = [
     "balance_condition_eq1",
     "balance_condition_eq2",
     "balance_fraction",
+    "balance_line_offsets",
+    "balance_sweep",
     "codesign_loss",
     "counter_mass_design",
+    "payload_sweep",
     "reduced_mass",
     "shaking_forces",
     "with_counter_mass_moments",
@@ -125,3 +128,44 @@ def codesign_loss(params, robot: DualV, motion, weight, force_scale=100.0, inert
     forces = shaking_forces(design, *motion)
     inertia = jnp.sum(design.counter_mass_inertia_about_base())
     return jnp.mean(jnp.sum(forces**2, -1)) / force_scale**2 + weight * inertia / inertia_scale
+
+
+def balance_line_offsets(moments, reference) -> tuple[Float[Array, ""], Float[Array, ""]]:
+    """How far counter-mass moments ``μ`` ``(4,)`` [kg·m] lie from a balance condition
+    ``μ*`` ``(4,)`` (e.g. eq 1) [-]: ``(max_i |μ_i - μ*_i| / μ*_i, max_i |d_i| / μ*_i)``
+    with ``d`` the part of ``μ - μ*`` off the line ``μ* + c·(-1, 1, 1, -1)`` of exactly
+    balanced designs (the first is zero only at ``μ*``, the second on the whole line)."""
+    deviation = moments - reference
+    direction = BALANCE_NULL_DIRECTION
+    along = deviation @ direction / (direction @ direction)
+    off_line = jnp.max(jnp.abs(deviation - along * direction) / reference)
+    return jnp.max(jnp.abs(deviation / reference)), off_line
+
+
+@eqx.filter_jit
+def _peak_force_x(robots: DualV, states) -> Array:
+    """``max_t |F_x|`` [N] of a batch of robots (leading axis of the leaves)."""
+
+    def one(robot):
+        force = jax.vmap(lambda q, qd, qdd: jaxbal.shaking_wrench(robot, q, qd, qdd)[0][0])
+        return jnp.max(jnp.abs(force(*states)))
+
+    return jax.vmap(one)(robots)
+
+
+def balance_sweep(robot: DualV, states, fractions) -> Float[Array, " k"]:
+    """``max_t |F_x|`` [N] along joint states ``(q, q̇, q̈)`` ``(t, 11)`` each, with
+    ``m_cm,i·p_cm,i`` set to each fraction of eq (2) (``m_cm`` scaled, ``p_cm`` kept): the
+    shortfall acts as a payload ``2δμ/l_i1`` at the platform centre (eq 30)."""
+    required = balance_condition_eq2(robot)
+    masses = jnp.asarray(fractions, dtype=float)[:, None] * required / robot.p_cm
+    robots = jax.vmap(lambda m: eqx.tree_at(lambda r: r.m_cm, robot, m))(masses)
+    return _peak_force_x(robots, states)
+
+
+def payload_sweep(robot: DualV, states, payloads) -> Float[Array, " k"]:
+    """``max_t |F_x|`` [N] along joint states ``(q, q̇, q̈)`` with each payload [kg] at the
+    platform centre (eq 30: ``|F_x| = (m_red + payload)·|ẍ5|`` for translations)."""
+    values = jnp.asarray(payloads, dtype=float)
+    robots = jax.vmap(lambda m: eqx.tree_at(lambda r: r.payload, robot, m))(values)
+    return _peak_force_x(robots, states)

@@ -1,7 +1,10 @@
-"""DUAL-V drawings: the derived layout and the condition-number map of Fig 8.
+"""DUAL-V drawings: the derived layout, the condition-number map of Fig 8, and the
+histories and trade-offs of :mod:`jaxbal.robots.dual_v_studies` (Figs 12-14, eq 30,
+co-design). Every function returns the matplotlib figure (or axis) it drew.
 
 References:
-    van der Wijk, Krut, Pierrot & Herder (2013), Fig 2b-c (layout), Fig 8 (κ map).
+    van der Wijk, Krut, Pierrot & Herder (2013), Fig 2b-c (layout), Fig 8 (κ map),
+    Figs 12-14 (shaking wrench, torques, bearing forces), eq (30).
 """
 
 from __future__ import annotations
@@ -12,12 +15,22 @@ import numpy as np
 
 from jaxbal._src.robots.dual_v import OUTWARD, DualV
 
-__all__ = ["condition_number_grid", "plot_condition_number", "plot_layout"]
+__all__ = [
+    "condition_number_grid",
+    "plot_bearing_forces",
+    "plot_codesign_trade",
+    "plot_condition_number",
+    "plot_layout",
+    "plot_sweeps",
+    "plot_wrench_and_torques",
+]
 
 ARM_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red")
 
 
-def plot_layout(robot: DualV, pose=(0.0, 0.0, 0.0), branch=OUTWARD, ax=None, workspace=True):
+def plot_layout(
+    robot: DualV, pose=(0.0, 0.0, 0.0), branch=OUTWARD, ax=None, workspace=True, outline=None
+):
     """Draw the DUAL-V at ``pose``: base pivots A_i, links, platform, counter-masses.
 
     Args:
@@ -26,6 +39,8 @@ def plot_layout(robot: DualV, pose=(0.0, 0.0, 0.0), branch=OUTWARD, ax=None, wor
         branch: elbow signs (see :mod:`jaxbal.robots.dual_v`).
         ax: a matplotlib axis (created if ``None``).
         workspace: also draw the two circles whose intersection is the workspace.
+        outline: optional ``(label, vertices (k, ≥2))``: a closed path of the platform
+            centre drawn dashed (e.g. the Fig 12 triangle) [m].
 
     Returns:
         The matplotlib axis.
@@ -62,6 +77,11 @@ def plot_layout(robot: DualV, pose=(0.0, 0.0, 0.0), branch=OUTWARD, ax=None, wor
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title("DUAL-V layout (squares: counter-masses)")
+    if outline is not None:
+        label, vertices = outline
+        closed = np.vstack([vertices, vertices[:1]])[:, :2]
+        ax.plot(*closed.T, "k--", lw=1, label=label)
+        ax.legend(loc="lower right")
     return ax
 
 
@@ -101,4 +121,99 @@ def plot_condition_number(robot: DualV, orientations=(-0.2, 0.0, 0.2), count=81,
         ax.set_xlabel("x5 [m]")
     np.atleast_1d(axes)[0].set_ylabel("y5 [m]")
     fig.colorbar(image, ax=axes, label="κ = cond(J_h)")
+    return fig
+
+
+def plot_wrench_and_torques(times, histories):
+    """Fig 12 analogue: shaking force x, y, shaking moment (every robot) and the torques
+    (dotted: unbalanced, solid: balanced) against time.
+
+    Args:
+        times: ``(t,)`` [s].
+        histories: label ↦ :class:`~jaxbal.robots.dual_v_dynamics.MotionSample` history
+            (from :func:`~jaxbal.robots.dual_v_studies.evaluate_motion`); the torques of
+            the labels ``"unbalanced"`` and ``"balanced"`` are drawn.
+    """
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(2, 2, figsize=(11, 7), sharex=True)
+    for label, out in histories.items():
+        axes[0, 0].plot(times, out.shaking_force[:, 0], label=label)
+        axes[0, 1].plot(times, out.shaking_force[:, 1], label=label)
+        axes[1, 0].plot(times, out.shaking_moment, label=label)
+    for label, style in (("unbalanced", ":"), ("balanced", "-")):
+        for i in range(4):
+            axes[1, 1].plot(
+                times,
+                histories[label].torques[:, i],
+                style,
+                color=f"C{i}",
+                label=f"τ{i + 1} {label}",
+            )
+    titles = ("ShF_x [N]", "ShF_y [N]", "ShM [N·m]", "τ [N·m]")
+    for ax, title in zip(axes.flat, titles, strict=True):
+        ax.set_title(title)
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend()
+    axes[1, 1].legend(fontsize=6, ncol=2)
+    axes[1, 0].set_xlabel("t [s]")
+    axes[1, 1].set_xlabel("t [s]")
+    return fig
+
+
+def plot_bearing_forces(times, histories, labels=("unbalanced", "balanced")):
+    """Fig 14 analogue: ``‖F_A,i‖`` [N] of the four base bearings against time [s]."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 4, figsize=(14, 3.5), sharey=True)
+    for i, ax in enumerate(axes):
+        for label in labels:
+            ax.plot(times, np.linalg.norm(histories[label].bearing[:, i], axis=-1), label=label)
+        ax.set_title(f"‖F_A{i + 1}‖ [N]")
+        ax.set_xlabel("t [s]")
+    axes[0].legend()
+    return fig
+
+
+def plot_sweeps(fractions, balance_forces, payloads, payload_forces, marks=(96.72, 0.107)):
+    """Eq (30): peak ``|F_x|`` [N] against the counter-mass moment (fraction of eq 2)
+    and against a payload [kg]; dashed lines at ``marks`` (the 96.72 % robot, 0.107 kg)."""
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
+    axes[0].plot(100 * np.asarray(fractions), balance_forces)
+    axes[0].axvline(marks[0], ls="--", color="0.5")
+    axes[0].set_xlabel("m_cm·p_cm [% of eq (2)]")
+    axes[0].set_ylabel("max |ShF_x| on the triangle [N]")
+    axes[1].plot(payloads, payload_forces)
+    axes[1].axvline(marks[1], ls="--", color="0.5")
+    axes[1].set_xlabel("payload at the platform centre [kg]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    return fig
+
+
+def plot_codesign_trade(points, references=None):
+    """Peak shaking force against peak torque of the co-designed robots (one point per
+    weight of :func:`~jaxbal.robots.dual_v_studies.codesign_trade`), with optional
+    ``references`` ``label ↦`` :class:`~jaxbal.robots.dual_v_studies.Peaks` of other
+    robots on the same motion (drawn as red squares, green triangles, ...)."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(5.5, 4))
+    forces = [float(p.peak_force) for p in points]
+    torques = [float(p.peak_torque) for p in points]
+    ax.plot(forces, torques, "o-")
+    for point, force, torque in zip(points, forces, torques, strict=True):
+        ax.annotate(
+            f"w={point.weight:g}", (force, torque), textcoords="offset points", xytext=(4, 4),
+            fontsize=7,
+        )  # fmt: skip
+    styles = ("rs", "g^", "bv", "kD")
+    for (label, peaks), style in zip((references or {}).items(), styles, strict=False):
+        ax.plot(float(peaks.force_norm), float(np.max(peaks.torques)), style, label=label)
+    ax.set_xlabel("max ‖ShF‖ on the triangle [N]")
+    ax.set_ylabel("max ‖τ_i‖ [N·m]")
+    ax.legend()
+    ax.grid(alpha=0.3)
     return fig
