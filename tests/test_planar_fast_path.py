@@ -21,8 +21,22 @@ class Swinger(PlanarRobot):
     length: jax.Array
     bodies: Bodies
 
+    @property
+    def dof(self):
+        return 3
+
     def mass_properties(self):
         return self.bodies
+
+    # The contract's kinematics: the coordinates are the pose (identity, every pose
+    # reachable); only the shaking wrench is under test here.
+    def end_effector(self, q):
+        return jnp.asarray(q, dtype=float)
+
+    def inverse_kinematics(self, pose, *, branch=None, return_valid=False):
+        self.branch(branch)  # validates the argument
+        q = jnp.asarray(pose, dtype=float)
+        return (q, jnp.all(jnp.isfinite(q))) if return_valid else q
 
     def planar_frames(self, q):
         origin2 = self.length * jnp.stack([jnp.cos(q[0]), jnp.sin(q[0])])
