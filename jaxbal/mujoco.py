@@ -23,6 +23,7 @@ from jaxbal._src.mujoco.tree import (
     prescribed_tree,
     tree_state,
 )
+from jaxbal._src.studies import agreement_table, confirm_cases, mujoco_peaks
 
 __all__ = [
     "BASE_MASS",
@@ -48,5 +49,8 @@ __all__ = [
     "simulate_open_loop",
     "to_mjcf",
     "tree_state",
+    "agreement_table",
+    "confirm_cases",
+    "mujoco_peaks",
     "with_mass_properties",
 ]

@@ -11,6 +11,7 @@ from jaxbal._src.report import (
     atomic_write_text,
     save_figure,
 )
+from jaxbal._src.studies import plot_histories
 
 __all__ = [
     "Context",
@@ -20,5 +21,6 @@ __all__ = [
     "Table",
     "atomic_write_bytes",
     "atomic_write_text",
+    "plot_histories",
     "save_figure",
 ]

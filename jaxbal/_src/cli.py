@@ -20,8 +20,13 @@ def reproduce(
     ),
 ):
     """Reproduce the papers' tables and figures into OUT (CSV, PNG, REPORT.md)."""
-    from jaxbal._src.reproduce import run_all
+    from jaxbal._src.reproduce import run_all, select
 
+    try:
+        select(only)
+    except (ValueError, FileNotFoundError) as error:
+        typer.echo(f"error: {error}", err=True)
+        raise typer.Exit(code=2) from None
     results = run_all(out, only=only, update_readme=readme)
     typer.echo(f"{len(results)} experiment(s) written to {out}/ (see {out}/REPORT.md)")
 
@@ -48,11 +53,14 @@ def export_mjcf(
     View it with ``python -m mujoco.viewer --mjcf robot.xml``.
     """
     from jaxbal._src.mujoco.mjcf import export_mjcf as to_xml
+    from jaxbal._src.robots import by_name
 
     try:
-        xml = to_xml(robot, gravity=(0.0, 0.0, -9.81) if gravity else None, base_joints=base_joints)
+        nominal = by_name(robot)
     except ValueError as error:
-        raise typer.BadParameter(str(error)) from error
+        typer.echo(f"error: {error}", err=True)
+        raise typer.Exit(code=2) from None
+    xml = to_xml(nominal, gravity=(0.0, 0.0, -9.81) if gravity else None, base_joints=base_joints)
     typer.echo(xml)
 
 

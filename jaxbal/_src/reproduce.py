@@ -46,13 +46,27 @@ def discover(folder: Path | None = None) -> list[Experiment]:
     return found
 
 
+def select(only: str | None) -> list[Experiment]:
+    """The experiments whose name contains ``only`` (all for ``None``).
+
+    Raises:
+        ValueError: ``only`` is empty or matches nothing (the message lists the names).
+    """
+    experiments = discover()
+    if only is None:
+        return experiments
+    chosen = [e for e in experiments if only.strip() and only.strip() in e.name]
+    if not chosen:
+        names = ", ".join(e.name for e in experiments)
+        raise ValueError(f"no experiment matches --only {only!r}; choose from: {names}")
+    return chosen
+
+
 def run_all(out: Path, only: str | None = None, update_readme: Path | None = None):
     """Run the experiments (those whose name contains ``only``, if given) into ``out``."""
     out = Path(out)
+    experiments = select(only)
     out.mkdir(parents=True, exist_ok=True)
-    experiments = [e for e in discover() if only is None or only in e.name]
-    if not experiments:
-        raise ValueError(f"no experiment matches {only!r}")
     results = []
     with tqdm(total=len(experiments), desc="reproduce", unit="exp") as bar:
         for experiment in experiments:
