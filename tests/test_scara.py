@@ -10,8 +10,8 @@ from jax.test_util import check_grads
 
 import jaxbal
 from jaxbal.planning import wrench_along as _wrench_along
-from jaxbal.robots import scara_balancing as sb
 from jaxbal.robots import PickAndPlace, Scara, joint_trajectory, scara
+from jaxbal.robots import scara_balancing as sb
 
 wrench_along = eqx.filter_jit(_wrench_along)
 DEG = np.pi / 180
@@ -218,6 +218,33 @@ def test_unreachable_target_raises():
         robot.inverse_kinematics(jnp.array([0.4, 0.0, 0.0, 0.0]))
 
 
+@pytest.mark.parametrize("bad", [2, 0, -2, (1, -1), (), (0,), "up"])
+def test_invalid_branch_raises(bad):
+    # Reference: the contract -- a sign other than ±1 or a tuple not of one sign is a
+    # structure error (ValueError), with return_valid=True and along a joint trajectory.
+    robot = scara()
+    pose = paper_move()(0.1)
+    with pytest.raises(ValueError, match="branch"):
+        robot.inverse_kinematics(pose, branch=bad)
+    with pytest.raises(ValueError, match="branch"):
+        robot.inverse_kinematics(pose, branch=bad, return_valid=True)
+    with pytest.raises(ValueError, match="branch"):
+        joint_trajectory(robot, paper_move(), branch=bad)(0.1)
+
+
+def test_branch_is_the_sign_of_sin_theta2():
+    # Reference: eq (4), the "±" is the sign of sin θ2; both branches reach the pose
+    # (forward kinematics, 1e-12) and (−1,) is −1 (exact).
+    robot = scara()
+    pose = paper_move()(0.1)
+    for sign in (1, -1):
+        q = robot.inverse_kinematics(pose, branch=sign)
+        assert np.sign(np.sin(float(q[1]))) == sign
+        np.testing.assert_allclose(robot.end_effector(q), pose, atol=1e-12)
+        np.testing.assert_array_equal(q, robot.inverse_kinematics(pose, branch=(sign,)))
+        np.testing.assert_array_equal(q, joint_trajectory(robot, paper_move(), sign)(0.1))
+
+
 def test_invalid_parameters_raise():
     with pytest.raises(ValueError, match="non-negative"):
         Scara([0.1, 0.2], [0.0, 0.0, 0.0], [1.0, -1.0, 1.0], [0.1, 0.1, 0.1])
@@ -241,7 +268,7 @@ def test_invalid_parameters_raise():
 
 def test_mujoco_confirms_wrench_and_reactionless_motion(unbalanced_wrench):
     # Reference: MuJoCo C inverse dynamics on a tree built from the lengths
-    # (jaxbal.mjx_trees.scara_tree), 1e-9 relative; gravity included.
+    # (Scara.mujoco_tree), 1e-9 relative; gravity included.
     from jaxbal.mujoco import mujoco_base_reaction
 
     robot = sb.force_balanced(general_scara())
