@@ -1,8 +1,9 @@
 """MuJoCo confirms jaxbal: the DUAL-V torques by open-loop forward simulation (the check
-of van der Wijk et al. 2013, Fig 6, with MuJoCo in place of Spacar).
+of van der Wijk et al. 2013, Fig 6, with MuJoCo in place of Spacar), through
+:mod:`jaxbal.robots.dual_v_studies`.
 
 The base-reaction agreement of every robot is in that robot's own experiment (the
-``*_mjx`` tables, from :func:`jaxbal.mjx.confirm`).
+``*_mjx`` tables, from :func:`jaxbal.mujoco.confirm`).
 
 Motion: two rest-to-rest quintic moves of the platform, a translation-heavy one
 (x −0.1 → 0.1 m, y −0.175 → 0.175 m, θ5 0 → 0.1 rad in 0.1 s; peak 115 m/s² along x,
@@ -12,26 +13,24 @@ Motion: two rest-to-rest quintic moves of the platform, a translation-heavy one
 
 from __future__ import annotations
 
-import jax.numpy as jnp
 import matplotlib
 import numpy as np
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-import jaxbal  # noqa: E402
-from jaxbal.mujoco import simulate_open_loop  # noqa: E402
-from jaxbal.profiles import Quintic  # noqa: E402
 from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
 from jaxbal.robots import dual_v  # noqa: E402
-from jaxbal.robots.dual_v_dynamics import paper_torques, virtual_work_torques  # noqa: E402
+from jaxbal.robots.dual_v_studies import (  # noqa: E402
+    QuinticMoves,
+    open_loop_convergence,
+    open_loop_tracking,
+)
 
-START = jnp.array([-0.1, -0.175, 0.0])  # m, m, rad
-MIDDLE = jnp.array([0.1, 0.175, 0.1])
-END = jnp.array([0.1, 0.175, -0.3])
-FIRST, SECOND = 0.1, 0.0345  # s
+WAYPOINTS = ((-0.1, -0.175, 0.0), (0.1, 0.175, 0.1), (0.1, 0.175, -0.3))  # m, m, rad
+DURATIONS = (0.1, 0.0345)  # s
 TIMESTEPS = (1e-4, 5e-5, 2.5e-5)  # s; 1e-4 s is the paper's maximal ODE45 step
-TRACKED = ("x5", "y5", "theta5")
+MODELS = {"paper eqs (3)-(29)": "paper", "min-norm virtual work": "min_norm"}
 COLUMNS = (("x5 [m]", "m"), ("y5 [m]", "m"), ("θ5 [rad]", "rad"))
 # Stated pass criterion (see the notes): order-2 convergence in dt, and a dt → 0
 # (Richardson) tracking error below these bounds [m, m, rad].
@@ -39,68 +38,35 @@ ORDER_RANGE = (1.9, 2.1)
 EXTRAPOLATED_BOUND = (1e-9, 1e-9, 1e-8)
 
 
-def pose(t):
-    """Planned platform pose ``(x5, y5, θ5)`` at time ``t`` [s]."""
-    quintic = Quintic()
-    first = quintic(jnp.clip(t / FIRST, 0.0, 1.0))
-    second = quintic(jnp.clip((t - FIRST) / SECOND, 0.0, 1.0))
-    return START + first * (MIDDLE - START) + second * (END - MIDDLE)
-
-
 def run(ctx) -> Result:
     robot = dual_v()
-    duration = FIRST + SECOND
-
-    def path(t):
-        return robot.inverse_kinematics(pose(t))
-
-    def paper(t):
-        u, ud, udd = jaxbal.time_derivatives(pose, t, 2)[:3]
-        return paper_torques(robot, robot.inverse_kinematics(u), ud, udd)
-
-    def minimum_norm(t):
-        return virtual_work_torques(robot, *jaxbal.time_derivatives(pose, t, 2)[:3])
-
+    path = QuinticMoves(WAYPOINTS, DURATIONS)
     table = Table("mujoco_dualv_tracking", "DUAL-V open-loop tracking in MuJoCo (max error)")
-    runs, passed, limits = {}, {}, {}
-    for name, efforts in (("paper eqs (3)-(29)", paper), ("min-norm virtual work", minimum_norm)):
-        for dt in TIMESTEPS:
-            ctx.progress(f"MuJoCo {name}, dt = {dt:g} s")
-            every = max(1, int(round(1e-4 / dt)))
-            result = simulate_open_loop(
-                robot, path, efforts, duration, TRACKED, timestep=dt, record_every=every
-            )
+    studies, passed, limits = {}, {}, {}
+    for name, model in MODELS.items():
+        study = open_loop_convergence(
+            robot, path, path.duration, model, TIMESTEPS, progress=ctx.progress
+        )
+        for dt, result in study.runs.items():
             row = f"{name}, dt = {dt:g} s"
             for k, (column, unit) in enumerate(COLUMNS):
                 table.add(row, column, result.error[k], unit)
             table.add(row, "loop closure", result.constraint_violation, "m")
-            runs[(name, dt)] = result
-        # Richardson on the two finest steps (same recorded instants): the dt → 0 motion.
-        coarse, fine = runs[(name, TIMESTEPS[-2])], runs[(name, TIMESTEPS[-1])]
-        limit = (4.0 * fine.simulated - coarse.simulated) / 3.0
-        extrapolated = np.max(np.abs(limit - fine.planned), axis=0)
-        order = np.log2(coarse.error / fine.error)
         for k, (column, unit) in enumerate(COLUMNS):
-            table.add(f"{name}, extrapolated dt → 0", column, extrapolated[k], unit)
-            table.add(f"{name}, observed order in dt", column, order[k], "-")
-        limits[name] = extrapolated
-        passed[name] = bool(
-            np.all((order > ORDER_RANGE[0]) & (order < ORDER_RANGE[1]))
-            and np.all(extrapolated < np.asarray(EXTRAPOLATED_BOUND))
-        )
-    sensitivity = simulate_open_loop(robot, path, paper, duration, TRACKED, effort_scale=1.001)
+            table.add(f"{name}, extrapolated dt → 0", column, study.extrapolated[k], unit)
+            table.add(f"{name}, observed order in dt", column, study.order[k], "-")
+        studies[name], limits[name] = study, study.extrapolated
+        passed[name] = study.passed(ORDER_RANGE, EXTRAPOLATED_BOUND)
+    sensitivity = open_loop_tracking(robot, path, path.duration, "paper", effort_scale=1.001)
     row = "paper torques × 1.001, dt = 1e-4 s"
     for k, (column, unit) in enumerate(COLUMNS):
         table.add(row, column, sensitivity.error[k], unit)
 
-    reference = runs[("paper eqs (3)-(29)", TIMESTEPS[0])]
+    reference = studies["paper eqs (3)-(29)"].runs[TIMESTEPS[0]]
     fig, ax = plt.subplots(figsize=(6, 3.5))
-    for k, label in enumerate(("x5 [m]", "y5 [m]", "θ5 [rad]")):
-        ax.semilogy(
-            reference.times,
-            np.abs(reference.simulated[:, k] - reference.planned[:, k]) + 1e-16,
-            label=label,
-        )
+    for k, (label, _) in enumerate(COLUMNS):
+        error = np.abs(reference.simulated[:, k] - reference.planned[:, k])
+        ax.semilogy(reference.times, error + 1e-16, label=label)
     ax.set(xlabel="time [s]", ylabel="|simulated − planned|", title="DUAL-V, MuJoCo, dt = 1e-4 s")
     ax.legend(fontsize=8)
     figure = save_figure(fig, ctx.figure_path("mujoco_dualv_tracking"))
@@ -108,7 +74,7 @@ def run(ctx) -> Result:
     worst = reference.error
     limit_paper = limits["paper eqs (3)-(29)"]
     notes = f"""
-jaxbal's actuator torques drive MuJoCo's DUAL-V (generated by `jaxbal.mjcf` from the
+jaxbal's actuator torques drive MuJoCo's DUAL-V (generated by `jaxbal.mujoco` from the
 robot's geometry: four RR arms, the platform on a planar joint, the loops closed by
 `connect` equalities) open-loop from the planned initial state; no feedback. Motion: a
 translation-heavy quintic move (peaks 115 m/s² along x, 202 m/s² along y; paper 118 and
