@@ -1,7 +1,7 @@
 """Briot, Arakelian & Le Baron (2012), Table 1 and Fig 5: the planar 2R arm.
 
-Eight paths across the 0.45 m test square (numbering: :mod:`jaxbal.square_paths`),
-0.5 s each, three motion laws:
+Eight paths across the 0.45 m test square (numbering: :mod:`jaxbal.robots.planar_arm`),
+0.5 s each, three motion laws (:func:`jaxbal.robots.planar_arm_studies.motion_laws`):
 
 1. quintic profile on the end-effector straight line;
 2. bang-bang profile on the straight line of the total centre of mass (eqs 3-4);
@@ -11,27 +11,17 @@ Eight paths across the 0.45 m test square (numbering: :mod:`jaxbal.square_paths`
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 
 import jaxbal  # noqa: E402
-from jaxbal.mujoco import confirm_path  # noqa: E402
-from jaxbal.planning import (  # noqa: E402
-    ComLine,
-    EndEffectorLine,
-    com_line,
-    peak_norm,
-    torques_along,
-    wrench_along,
-)
-from jaxbal.profiles import BangBang, Quintic  # noqa: E402
-from jaxbal.planning import plan_rate_limited  # noqa: E402
-from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
+from jaxbal.mujoco import confirm_cases  # noqa: E402
+from jaxbal.planning import peak_norm, wrench_along  # noqa: E402
+from jaxbal.report import Experiment, Result, Table, plot_histories  # noqa: E402
 from jaxbal.robots.planar_arm import BRIOT2012_PATHS, path_name, square_points  # noqa: E402
+from jaxbal.robots.planar_arm_studies import input_torques, motion_laws  # noqa: E402
 
 DURATION = 0.5  # s
 RATE_LIMIT = 3.0e4  # N·m/s
@@ -42,6 +32,7 @@ ELBOW = -1  # end-effector IK branch whose COM IK is the "+" mode of eq (10)
 COM_MODE = 1
 SAMPLES = 2001
 MJX_SAMPLES = 51  # samples per trajectory for the MJX confirmation
+FIG_PATH = "P5P9"  # the path of Figs 5 and 11
 
 # Table 1 of the paper (max shaking force norm, N), in the order of BRIOT2012_PATHS.
 PAPER_TABLE1 = {
@@ -49,30 +40,11 @@ PAPER_TABLE1 = {
     "case2": (121.0, 85.0, 47.5, 41.5, 44.3, 136.3, 121.7, 111.8),
     "case3": (124.0, 86.0, 48.0, 41.8, 44.7, 137.7, 123.2, 113.1),
 }
-
-
-def com_path(profile, data):
-    """COM straight line with ``profile`` (``data = (robot, start, end)``)."""
-    robot, start, end = data
-    return ComLine(robot, jaxbal.StraightLine(start, end, profile, DURATION), mode=COM_MODE)
-
-
-def cases(robot, start_point, end_point):
-    """The three motion laws between two end-effector points: name ↦ trajectory."""
-    q_start = robot.inverse_kinematics(start_point, ELBOW)
-    q_end = robot.inverse_kinematics(end_point, ELBOW)
-    line = jaxbal.StraightLine(start_point, end_point, Quintic(), DURATION)
-    case2 = com_line(robot, q_start, q_end, BangBang(), DURATION, mode=COM_MODE)
-    plan = plan_rate_limited(
-        robot, com_path, (robot, case2.line.start, case2.line.end), DURATION, RATE_LIMIT
-    )
-    case3 = com_path(plan.profile, (robot, case2.line.start, case2.line.end))
-    return {"case1": EndEffectorLine(robot, line, ELBOW), "case2": case2, "case3": case3}, plan
-
-
-@jax.jit
-def _forces(robot, path, times):
-    return wrench_along(robot, path, times)[0]
+STYLES = {
+    "case1": {"color": "k", "label": "case 1 (quintic, end-effector)"},
+    "case2": {"color": "k", "linestyle": "--", "label": "case 2 (bang-bang, COM)"},
+    "case3": {"color": "0.6", "label": "case 3 (trapezoid, COM, rate-limited)"},
+}
 
 
 def run(ctx) -> Result:
@@ -86,28 +58,47 @@ def run(ctx) -> Result:
     for index, (a, b) in enumerate(BRIOT2012_PATHS):
         name = path_name(a, b)
         ctx.progress(f"2R {name}")
-        laws, plan = cases(robot, points[a - 1], points[b - 1])
-        plans[name] = plan
-        for case, path in laws.items():
-            forces = _forces(robot, path, times)
+        laws = motion_laws(
+            robot, points[a - 1], points[b - 1], DURATION, RATE_LIMIT, elbow=ELBOW,
+            com_branch=COM_MODE,
+        )  # fmt: skip
+        plans[name] = laws.plan
+        cases = {case: (robot, path) for case, path in laws.trajectories.items()}
+        for case, agreement in confirm_cases(cases, mjx_times).items():
+            forces = wrench_along(robot, laws.trajectories[case], times)[0]
             table.add(name, case, peak_norm(forces), "N", PAPER_TABLE1[case][index])
-            agreement = confirm_path(robot, path, mjx_times, engine="mjx")
             mjx_table.add(name, case, agreement.relative, "-")
-            if name == "P5P9":
+            if name == FIG_PATH:
                 curves[case] = jnp.linalg.norm(forces, axis=-1)
-    fig, ax = plt.subplots(figsize=(6, 3.5))
-    styles = {
-        "case1": ("k", "-", "case 1 (quintic, end-effector)"),
-        "case2": ("k", "--", "case 2 (bang-bang, COM)"),
-        "case3": ("0.6", "-", "case 3 (trapezoid, COM, rate-limited)"),
-    }
-    for case, (color, line, label) in styles.items():
-        ax.plot(times, curves[case], color=color, linestyle=line, label=label)
-    ax.set(xlabel="time [s]", ylabel="‖f_sh‖ [N]", title="2R, path P5P9 (cf. Fig 5)")
-    ax.legend(fontsize=8)
-    figure = save_figure(fig, ctx.figure_path("briot2012_fig5_2r_shaking_force"))
+        if name == FIG_PATH:
+            fig_laws = laws
+    figure = plot_histories(
+        ctx.figure_path("briot2012_fig5_2r_shaking_force"), times, [("‖f_sh‖ [N]", curves)],
+        STYLES, title="2R, path P5P9 (cf. Fig 5)", figsize=(6, 3.5),
+    )  # fmt: skip
 
-    torque_table, torque_figure = input_torques(ctx, robot, points, times)
+    # --- §3.3 and Fig 11: input torques on P5P9 -----------------------------------------
+    ctx.progress("2R input torques (Fig 11)")
+    torques = input_torques(robot, fig_laws, COUNTERWEIGHT_DISTANCES, times, elbow=ELBOW)
+    torque_table = Table("briot2012_fig11_torques", "2R, P5P9: peak input torque max_t max_i |τ_i|")
+    peaks = {name: float(jnp.max(jnp.abs(values))) for name, values in torques.items()}
+    for name, peak in peaks.items():
+        torque_table.add(name, "peak_torque", peak, "N·m")
+    for row, against, key in (
+        ("reduction_vs_balanced", "counterweights", "vs_balanced"),
+        ("reduction_vs_unbalanced", "unbalanced", "vs_unbalanced"),
+    ):
+        reduction = 100 * (1 - peaks["com_bang_bang"] / peaks[against])
+        torque_table.add(row, "com_bang_bang", reduction, "%", PAPER_TORQUE_REDUCTION[key])
+    shown = ("unbalanced", "counterweights", "com_bang_bang")
+    panels = [
+        (f"τ{joint + 1} [N·m]", {name.replace("_", " "): torques[name][:, joint] for name in shown})
+        for joint in range(2)
+    ]
+    torque_figure = plot_histories(
+        ctx.figure_path("briot2012_fig11_2r_input_torques"), times, panels,
+        title="2R, path P5P9: input torques (cf. Fig 11)", figsize=(9, 3.3),
+    )  # fmt: skip
 
     rows = [
         "| path | u1 | u2 | peak accel / bang-bang | peak dτ/dt [N·m/s] |",
@@ -125,60 +116,17 @@ def run(ctx) -> Result:
     )
 
 
-def input_torques(ctx, robot, points, times):
-    """§3.3 and Fig 11: input torques on P5P9, unbalanced / counterweights / COM plan."""
-    ctx.progress("2R input torques (Fig 11)")
-    balanced = jaxbal.robots.planar_arm.force_balanced(robot, COUNTERWEIGHT_DISTANCES)
-    laws, _ = cases(robot, points[4], points[8])
-    models = {
-        "unbalanced": (robot, laws["case1"]),
-        "counterweights": (balanced, EndEffectorLine(balanced, laws["case1"].line, ELBOW)),
-        "com_bang_bang": (robot, laws["case2"]),
-        "com_trapezoid": (robot, laws["case3"]),
-    }
-    table = Table("briot2012_fig11_torques", "2R, P5P9: peak input torque max_t max_i |τ_i|")
-    peaks, curves = {}, {}
-    for name, (model, path) in models.items():
-        torques = torques_along(model, path, times)
-        peaks[name] = float(jnp.max(jnp.abs(torques)))
-        curves[name] = torques
-        table.add(name, "peak_torque", peaks[name], "N·m")
-    com = peaks["com_bang_bang"]
-    table.add(
-        "reduction_vs_balanced",
-        "com_bang_bang",
-        100 * (1 - com / peaks["counterweights"]),
-        "%",
-        PAPER_TORQUE_REDUCTION["vs_balanced"],
-    )
-    table.add(
-        "reduction_vs_unbalanced",
-        "com_bang_bang",
-        100 * (1 - com / peaks["unbalanced"]),
-        "%",
-        PAPER_TORQUE_REDUCTION["vs_unbalanced"],
-    )
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.3), sharex=True)
-    for joint, ax in enumerate(axes):
-        for name in ("unbalanced", "counterweights", "com_bang_bang"):
-            ax.plot(times, curves[name][:, joint], label=name.replace("_", " "))
-        ax.set(xlabel="time [s]", ylabel=f"τ{joint + 1} [N·m]")
-    axes[0].legend(fontsize=8)
-    fig.suptitle("2R, path P5P9: input torques (cf. Fig 11)")
-    return table, save_figure(fig, ctx.figure_path("briot2012_fig11_2r_input_torques"))
-
-
 NOTES = """
 Robot: §3.1 parameters, payload 5 kg at the tip, link inertias about their own COM,
 horizontal plane. Test square centred at (0, 0.475) m, edge 0.45 m, P1 at the
-bottom-left corner and counter-clockwise numbering (see `jaxbal.square_paths`): this is
-the only numbering (up to its mirror image) for which the 16 case-2 entries match the
+bottom-left corner and counter-clockwise numbering (`jaxbal.robots.planar_arm`): this
+is the only numbering (up to its mirror image) for which the 16 case-2 entries match the
 paper (all within 0.3%). End-effector IK branch: the one whose COM inverse kinematics
 is the "+" working mode of eq (10) (q2 < 0 on the whole square).
 Case 2's shaking force has constant norm m_tot·4·|x_Sf − x_S0|/T² by construction.
-Case 3: switch times from a refined vectorised grid search (`jaxbal.rate_limit`), with
-the torque rates computed by exact inverse dynamics (Lagrange, autodiff) including the
-jerk of the joint motion.
+Case 3: switch times from a refined vectorised grid search
+(`jaxbal.planning.plan_rate_limited`), with the torque rates computed by exact inverse
+dynamics (Lagrange, autodiff) including the jerk of the joint motion.
 """
 
 TORQUE_NOTES = """

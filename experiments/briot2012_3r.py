@@ -1,7 +1,8 @@
 """Briot, Arakelian & Le Baron (2012), Tables 2-3 and Figs 9-10: the planar 3R arm.
 
-Eight paths across the 0.3 m test square (numbering: :mod:`jaxbal.square_paths`),
-0.5 s each, end-effector orientation φ from 0 to 120°, three motion laws:
+Eight paths across the 0.3 m test square (numbering: :mod:`jaxbal.robots.planar_arm`),
+0.5 s each, end-effector orientation φ from 0 to 120°, three motion laws
+(:func:`jaxbal.robots.planar_arm_studies.motion_laws`):
 
 1. quintic profile on the end-effector position and on φ;
 2. bang-bang profile on the COM line; φ(t) a degree-8 polynomial meeting eqs (20),
@@ -14,28 +15,17 @@ The paper's values of Tables 2 and 3 are withheld from us: the CSVs carry ours o
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 import matplotlib
-import numpy as np
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 
 import jaxbal  # noqa: E402
-from jaxbal.mujoco import confirm_path  # noqa: E402
-from jaxbal import minimize  # noqa: E402
-from jaxbal.planning import (  # noqa: E402
-    ComLine,
-    EndEffectorLine,
-    peak_norm,
-    smooth_peak,
-    wrench_along,
-)
-from jaxbal.profiles import BangBang, BoundaryPolynomial, Quintic  # noqa: E402
-from jaxbal.planning import plan_rate_limited  # noqa: E402
-from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
+from jaxbal.mujoco import confirm_cases  # noqa: E402
+from jaxbal.planning import peak_norm, wrench_along  # noqa: E402
+from jaxbal.report import Experiment, Result, Table, plot_histories  # noqa: E402
 from jaxbal.robots.planar_arm import BRIOT2012_PATHS, path_name, square_points  # noqa: E402
+from jaxbal.robots.planar_arm_studies import motion_laws  # noqa: E402
 
 DURATION = 0.5  # s
 RATE_LIMIT = 3.0e4  # N·m/s
@@ -43,62 +33,18 @@ CENTRE, EDGE = (0.0, 0.487), 0.3  # m, Fig 7
 PHI_START, PHI_END = 0.0, 2.0 * jnp.pi / 3.0  # rad
 ELBOW = -1  # end-effector IK branch whose COM IK is the "+" mode of eq (15)
 COM_MODE = 1
-DEGREE = 8  # degree of the φ polynomial (paper, §3.2)
 SAMPLES = 2001
 MJX_SAMPLES = 51  # samples per trajectory for the MJX confirmation
-OPT_SAMPLES = 401
-TEMPERATURES = (3.0, 1.0, 0.3, 0.1, 0.03)  # N·m, smoothing continuation for eq (19)
-
-
-def phi_law(coefficients):
-    """φ(t): degree-8 polynomial from φ0 to φf with zero rates at both ends (eq 20)."""
-    return jaxbal.StraightLine(PHI_START, PHI_END, BoundaryPolynomial(coefficients), DURATION)
-
-
-def com_path(profile, data):
-    """COM line with ``profile`` and φ law ``data = (robot, start, end, coefficients)``."""
-    robot, start, end, coefficients = data
-    line = jaxbal.StraightLine(start, end, profile, DURATION)
-    return ComLine(robot, line, free=phi_law(coefficients), mode=COM_MODE)
-
-
-def moment_objective(coefficients, robot, start, end, temperature):
-    """Smoothed ``max_t |m_sh(t)|`` of case 2 for the φ-law coefficients (eq 19)."""
-    times = jaxbal.sample_times(DURATION, OPT_SAMPLES)
-    path = com_path(BangBang(), (robot, start, end, coefficients))
-    _, moments = wrench_along(robot, path, times)
-    return smooth_peak(moments[:, 2], temperature)
-
-
-def optimise_phi(robot, start, end, starts: int = 3):
-    """Degree-8 φ coefficients minimising the peak shaking moment (continuation in the
-    smoothing, from the quintic and from ``starts − 1`` seeded random starts; the best
-    reachable result on the true maximum wins)."""
-    times = jaxbal.sample_times(DURATION, OPT_SAMPLES)
-    rng = np.random.default_rng(2012)
-    best, best_peak = jnp.zeros(DEGREE - 5), np.inf
-    for index in range(starts):
-        coefficients = jnp.asarray(rng.normal(0.0, 30.0, DEGREE - 5) if index else best)
-        for temperature in TEMPERATURES:
-            solution = minimize(
-                moment_objective,
-                coefficients,
-                max_steps=60,
-                gtol=1e-9,
-                args=(robot, start, end, jnp.asarray(temperature)),
-            )
-            if bool(jnp.all(jnp.isfinite(solution.params))):
-                coefficients = solution.params
-        path = com_path(BangBang(), (robot, start, end, coefficients))
-        peak = float(jnp.max(jnp.abs(_wrench(robot, path, times)[1][:, 2])))
-        if peak < best_peak and bool(jnp.all(path.valid(times))):
-            best, best_peak = coefficients, peak
-    return best
-
-
-@jax.jit
-def _wrench(robot, path, times):
-    return wrench_along(robot, path, times)
+FIG_PATH = "P15P7"  # the path of Figs 9 and 10
+STYLES = {
+    "case1": {"color": "k", "label": "case 1 (quintic, end-effector)"},
+    "case2": {"color": "k", "linestyle": "--", "label": "case 2 (bang-bang COM, optimal φ)"},
+    "case3": {"color": "0.6", "label": "case 3 (trapezoid COM, rate-limited)"},
+}
+FIGURES = (
+    ("‖f_sh‖", "N", "briot2012_fig9_3r_shaking_force"),
+    ("m_sh,z", "N·m", "briot2012_fig10_3r_shaking_moment"),
+)
 
 
 def run(ctx) -> Result:
@@ -110,59 +56,38 @@ def run(ctx) -> Result:
     mjx_force = Table("briot2012_table2_mjx", "3R: force, max relative difference vs MJX")
     mjx_moment = Table("briot2012_table3_mjx", "3R: moment, max relative difference vs MJX")
     mjx_times = jaxbal.sample_times(DURATION, MJX_SAMPLES)
-    curves, details = {}, []
+    curves, details = ({}, {}), []
     for a, b in BRIOT2012_PATHS:
         name = path_name(a, b)
         ctx.progress(f"3R {name}")
-        pose_a = jnp.array([*points[a - 1], PHI_START])
-        pose_b = jnp.array([*points[b - 1], PHI_END])
-        q_a = robot.inverse_kinematics(pose_a, ELBOW)
-        q_b = robot.inverse_kinematics(pose_b, ELBOW)
-        start = jaxbal.center_of_mass(robot, q_a)[:2]
-        end = jaxbal.center_of_mass(robot, q_b)[:2]
-        coefficients = optimise_phi(robot, start, end)
-        data = (robot, start, end, coefficients)
-        plan = plan_rate_limited(robot, com_path, data, DURATION, RATE_LIMIT)
-        laws = {
-            "case1": EndEffectorLine(
-                robot, jaxbal.StraightLine(pose_a, pose_b, Quintic(), DURATION), ELBOW
-            ),
-            "case2": com_path(BangBang(), data),
-            "case3": com_path(plan.profile, data),
-        }
-        if not bool(jnp.all(laws["case2"].valid(times))):
-            raise ValueError(f"optimised φ law of {name} leaves the reachable COM region")
-        for case, path in laws.items():
-            forces, moments = _wrench(robot, path, times)
+        laws = motion_laws(
+            robot, points[a - 1], points[b - 1], DURATION, RATE_LIMIT, (PHI_START, PHI_END),
+            elbow=ELBOW, com_branch=COM_MODE, check_samples=SAMPLES,
+        )  # fmt: skip
+        cases = {case: (robot, path) for case, path in laws.trajectories.items()}
+        for case, agreement in confirm_cases(cases, mjx_times).items():
+            forces, moments = wrench_along(robot, laws.trajectories[case], times)
             force_table.add(name, case, peak_norm(forces), "N")
             moment_table.add(name, case, jnp.max(jnp.abs(moments[:, 2])), "N·m")
-            agreement = confirm_path(robot, path, mjx_times, engine="mjx")
             mjx_force.add(name, case, agreement.force_relative, "-")
             mjx_moment.add(name, case, agreement.moment_relative, "-")
-            if name == "P15P7":
-                curves[case] = (jnp.linalg.norm(forces, axis=-1), moments[:, 2])
+            if name == FIG_PATH:
+                curves[0][case], curves[1][case] = jnp.linalg.norm(forces, axis=-1), moments[:, 2]
         details.append(
-            f"| {name} | {', '.join(f'{float(c):.4g}' for c in coefficients)} | "
-            f"{float(plan.profile.u1):.4f} | {float(plan.profile.u2):.4f} |"
+            f"| {name} | {', '.join(f'{float(c):.4g}' for c in laws.coefficients)} | "
+            f"{float(laws.plan.profile.u1):.4f} | {float(laws.plan.profile.u2):.4f} |"
         )
-    figures = []
-    styles = {
-        "case1": ("k", "-", "case 1 (quintic, end-effector)"),
-        "case2": ("k", "--", "case 2 (bang-bang COM, optimal φ)"),
-        "case3": ("0.6", "-", "case 3 (trapezoid COM, rate-limited)"),
-    }
-    for index, (quantity, unit, fig_name) in enumerate(
-        [
-            ("‖f_sh‖", "N", "briot2012_fig9_3r_shaking_force"),
-            ("m_sh,z", "N·m", "briot2012_fig10_3r_shaking_moment"),
-        ]
-    ):
-        fig, ax = plt.subplots(figsize=(6, 3.5))
-        for case, (color, line, label) in styles.items():
-            ax.plot(times, curves[case][index], color=color, linestyle=line, label=label)
-        ax.set(xlabel="time [s]", ylabel=f"{quantity} [{unit}]", title="3R, path P15P7")
-        ax.legend(fontsize=8)
-        figures.append(save_figure(fig, ctx.figure_path(fig_name)))
+    figures = [
+        plot_histories(
+            ctx.figure_path(file),
+            times,
+            [(f"{quantity} [{unit}]", values)],
+            STYLES,
+            title=f"3R, path {FIG_PATH}",
+            figsize=(6, 3.5),
+        )  # fmt: skip
+        for (quantity, unit, file), values in zip(FIGURES, curves, strict=True)
+    ]
     notes = (
         NOTES
         + "\n\nOptimised φ-law coefficients c (φ = φ0 + (φf−φ0)·[10u³−15u⁴+6u⁵ + "

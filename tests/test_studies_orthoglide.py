@@ -91,6 +91,7 @@ def test_moment_is_affine_in_the_slider_offset():
     np.testing.assert_allclose(m3, m0 + 3 * (m1 - m0), atol=1e-9)
 
 
+@pytest.mark.slow
 def test_fit_recovers_a_known_reference_point_and_offset():
     # reference: synthetic table made with known (l, c); the fit recovers them and the
     # recomputed relative errors vanish
@@ -115,6 +116,7 @@ def test_fit_recovers_a_known_reference_point_and_offset():
     np.testing.assert_allclose(errors, 0.0, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_payload_error_slopes_match_finite_differences_and_shapes():
     # references: central differences in Δm (away from the kink at Δm = 0); Δm = 0 gives
     # identical case-3 and case-4 peaks (same plan)

@@ -24,6 +24,7 @@ def _com(robot, q):
     return jaxbal.center_of_mass(robot, q)[:2]
 
 
+@pytest.mark.slow
 def test_2r_motion_laws_endpoints_constant_force_and_rate_limit():
     # references: case 1 joins the end-effector points; cases 2-3 join the COMs of their
     # IK; case 2 (bang-bang COM line) has |f| = m_tot·4|ΔS|/T² (eq 3); case 3 meets the
@@ -91,6 +92,7 @@ def test_3r_com_path_meets_eq20_and_objective_bounds_and_gradients():
     check_grads(objective, (coefficients,), order=1, modes=("rev",), eps=1e-4, rtol=1e-4)
 
 
+@pytest.mark.slow
 def test_optimal_phi_law_lowers_the_peak_moment():
     # reference: the quintic law (coefficients 0) is the optimiser's first start, so the
     # optimum's true peak |m_z| can only be lower; one start, one temperature (fast)

@@ -1,13 +1,15 @@
 """Tests of jaxbal.robots.scara_studies (Arakelian & Briot 2008, §3) and of the studies
-shared by every robot (jaxbal._src.studies), on the SCARA."""
+shared by every robot (jaxbal._src.studies: confirm_cases, agreement_table, mujoco_peaks
+in jaxbal.mujoco; plot_histories in jaxbal.report), on the SCARA."""
 
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
 import jaxbal
-from jaxbal._src.studies import agreement_table, confirm_cases, mujoco_peaks, plot_histories
+from jaxbal.mujoco import agreement_table, confirm_cases, mujoco_peaks
 from jaxbal.planning import peak_norm, wrench_along
+from jaxbal.report import plot_histories
 from jaxbal.robots import PickAndPlace, scara
 from jaxbal.robots import scara_balancing as sb
 from jaxbal.robots import scara_studies as ss
