@@ -73,12 +73,33 @@ def test_reproduce_writes_report_and_plot(table1):
     assert not list(out.glob("*.tmp"))
 
 
-def test_cli_export_mjcf_loads_in_mujoco():
+@pytest.mark.parametrize(
+    ("name", "nv"),
+    [("planar_2r", 2), ("planar_3r", 3), ("scara", 5), ("dual_v", None), ("orthoglide", None)],
+)
+def test_cli_export_mjcf_loads_in_mujoco(name, nv):
+    """`jaxbal export-mjcf NAME` for every public robot name prints MJCF that MuJoCo
+    loads (one motor per actuated joint; serial arms: one dof per joint)."""
     import mujoco
 
-    result = CliRunner().invoke(app, ["export-mjcf", "2r"])
+    result = CliRunner().invoke(app, ["export-mjcf", name])
     assert result.exit_code == 0, result.output
-    model = mujoco.MjModel.from_xml_string(result.output)
-    assert model.nv == 2
-    bad = CliRunner().invoke(app, ["export-mjcf", "no-such-robot"])
-    assert bad.exit_code != 0 and "unknown robot" in bad.output
+    model = mujoco.MjModel.from_xml_string(result.stdout)
+    assert model.nu > 0
+    if nv is not None:
+        assert model.nv == nv
+
+
+def test_cli_export_mjcf_aliases_and_unknown_name():
+    """Old spellings are aliases (same XML); an unknown robot exits non-zero with one clear
+    message naming the known robots, and prints no XML."""
+    runner = CliRunner()
+    for alias, name in (("2r", "planar_2r"), ("3r", "planar_3r"), ("dual-v", "dual_v")):
+        aliased, canonical = (runner.invoke(app, ["export-mjcf", n]) for n in (alias, name))
+        assert aliased.exit_code == 0, aliased.output
+        assert aliased.stdout == canonical.stdout
+    bad = runner.invoke(app, ["export-mjcf", "no-such-robot"])
+    assert bad.exit_code != 0
+    assert "unknown robot" in bad.output and "no-such-robot" in bad.output
+    assert "planar_2r" in bad.output and "orthoglide" in bad.output
+    assert "<mujoco" not in bad.output and "Traceback" not in bad.output
