@@ -5,7 +5,7 @@ Run with ``make bench``; results go to ``benchmarks/results/*.json`` (atomic wri
 1. ``shaking_wrench`` of the Briot 2R on N ≥ 10⁶ random states, ``jit(vmap(...))``,
    against (a) a plain NumPy loop over the hand-derived closed form and (b) a loop of
    MuJoCo C ``mj_inverse`` on the same states and the same robot (base dofs whose
-   ``qfrc_inverse`` is the reaction, :mod:`jaxbal.mjx`). The two loops are timed on a
+   ``qfrc_inverse`` is the reaction, :mod:`jaxbal.mujoco`). The two loops are timed on a
    subset and reported per state. Target: jaxbal ≥ 25× the MuJoCo C loop.
 2. ``jax.grad`` of a scalar objective (peak shaking force along a planned 2R move)
    relative to evaluating it. Target ≤ 3×.
@@ -165,10 +165,8 @@ def gradient_cost() -> dict:
     def peak_force(params):
         masses, payload = params
         arm = jaxbal.robots.PlanarArm(base.lengths, base.com_ratios, masses, base.inertias, payload)
-        line = jaxbal.StraightLine(
-            arm.end_effector(q0)[:2], arm.end_effector(q1)[:2], Quintic(), 0.5
-        )
-        path = EndEffectorLine(arm, line, mode=-1)
+        line = jaxbal.StraightLine(arm.end_effector(q0), arm.end_effector(q1), Quintic(), 0.5)
+        path = EndEffectorLine(arm, line, branch=-1)
         return peak_norm(wrench_along(arm, path, times)[0])
 
     params = (base.masses, base.payload)
