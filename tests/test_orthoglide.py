@@ -168,6 +168,26 @@ def test_return_valid_never_raises_on_unreachable_pose():
     assert not bool(valid)
 
 
+def test_counter_sliders_add_their_momentum_rate():
+    # reference: closed form -- counter-slider i is a point mass at −ρ_i e_i, so it adds
+    # +m_c,i ρ̈_i e_i to f_sh = −Σ m a (tol 1e-10 N); zero mass (default) changes nothing;
+    # the design variable counter_mass round-trips through with_design
+    robot = orthoglide()
+    motion = (
+        jnp.array([0.02, -0.03, 0.05]),
+        jnp.array([0.5, -0.2, 0.3]),
+        jnp.array([40.0, 10, -25]),
+    )
+    q, qd, qdd = jaxbal.pose_motion(robot, *motion)
+    counter = jnp.array([0.3, 0.5, 0.7])
+    heavier = robot.with_design({"counter_mass": counter})
+    np.testing.assert_array_equal(heavier.design()["counter_mass"], counter)
+    force0, _ = jaxbal.shaking_wrench(robot, q, qd, qdd)
+    force1, _ = jaxbal.shaking_wrench(heavier, q, qd, qdd)
+    np.testing.assert_allclose(force1 - force0, counter * qdd[:3], atol=1e-10)
+    assert jaxbal.total_mass(heavier) == pytest.approx(float(jaxbal.total_mass(robot)) + 1.5)
+
+
 # --- COM inverse kinematics ---------------------------------------------------------------
 
 

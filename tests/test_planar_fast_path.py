@@ -1,6 +1,6 @@
 """The planar evaluation of the shaking wrench equals the general 3-D one.
 
-Reference: :func:`jaxbal.momentum.inertial_wrench` (3×3 rotations, angular momentum
+Reference: :func:`jaxbal._src.momentum.inertial_wrench` (3×3 rotations, angular momentum
 R I Rᵀ ω) on the same robot and states; tolerance 1e-12 relative. The test robot has
 products of inertia and COM heights, which only the general formula sees directly.
 """
