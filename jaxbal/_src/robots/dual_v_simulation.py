@@ -120,12 +120,22 @@ def open_loop_tracking(
     """MuJoCo's DUAL-V driven open-loop by :func:`torque_law` along ``pose_path`` for
     ``duration`` [s], its platform pose compared with the plan (a
     :class:`jaxbal.mujoco.Tracking` of :data:`PLATFORM_JOINTS`; settings there)."""
-    from jaxbal.mujoco import simulate_open_loop
+    laws = (_joint_path(robot, pose_path), torque_law(robot, pose_path, model))
+    return _simulate(robot, *laws, duration, timestep, record_every, effort_scale)
+
+
+def _joint_path(robot: DualV, pose_path: Callable) -> Callable:
+    """``t ↦ q (11,)``: the inverse kinematics along the pose path."""
 
     def path(t):
         return robot.inverse_kinematics(pose_path(t))
 
-    efforts = torque_law(robot, pose_path, model)
+    return path
+
+
+def _simulate(robot, path, efforts, duration, timestep, record_every, effort_scale=1.0):
+    from jaxbal.mujoco import simulate_open_loop
+
     return simulate_open_loop(
         robot,
         path,
@@ -173,12 +183,13 @@ def open_loop_convergence(
     ``record_interval`` [s] (the same instants for every step), then Richardson
     extrapolation of the two finest with ``expected_order`` (RK4 with a mid-step
     control held over the step converges as ``dt²``)."""
+    laws = (_joint_path(robot, pose_path), torque_law(robot, pose_path, model))  # jit once
     runs = {}
     for dt in timesteps:
         if progress is not None:
             progress(f"MuJoCo {model}, dt = {dt:g} s")
         every = max(1, int(round(record_interval / dt)))
-        runs[dt] = open_loop_tracking(robot, pose_path, duration, model, dt, every)
+        runs[dt] = _simulate(robot, *laws, duration, dt, every)
     coarse, fine = runs[timesteps[-2]], runs[timesteps[-1]]
     factor = (timesteps[-2] / timesteps[-1]) ** expected_order
     limit = (factor * fine.simulated - coarse.simulated) / (factor - 1.0)
