@@ -4,7 +4,10 @@ Every robot satisfies the contract of :class:`jaxbal.Robot`. Robot-specific tool
 (closed-form balancing, paper models) live in the submodules
 :mod:`jaxbal.robots.planar_arm`, :mod:`jaxbal.robots.scara_balancing`,
 :mod:`jaxbal.robots.dual_v_balancing`, :mod:`jaxbal.robots.dual_v_dynamics`,
-:mod:`jaxbal.robots.dual_v_plots` and :mod:`jaxbal.robots.orthoglide_planning`.
+:mod:`jaxbal.robots.dual_v_plots` and :mod:`jaxbal.robots.orthoglide_planning`; the
+studies that reproduce each paper (used by ``experiments/``) in
+:mod:`jaxbal.robots.planar_arm_studies`, :mod:`jaxbal.robots.scara_studies`,
+:mod:`jaxbal.robots.dual_v_studies` and :mod:`jaxbal.robots.orthoglide_studies`.
 """
 
 from jaxbal._src.robots import ALIASES, ROBOTS, by_name
