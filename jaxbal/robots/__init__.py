@@ -11,7 +11,10 @@ studies that reproduce each paper (used by ``experiments/``) in
 """
 
 from jaxbal._src.robots import ALIASES, ROBOTS, by_name
+from jaxbal._src.robots.counter_mass import add_counter_mass
 from jaxbal._src.robots.dual_v import CROSSED, OUTWARD, DualV, dual_v
+from jaxbal._src.robots.mjcf_import import from_mjcf, from_urdf
+from jaxbal._src.robots.mjcf_robot import MjcfRobot
 from jaxbal._src.robots.orthoglide import Orthoglide, orthoglide
 from jaxbal._src.robots.planar_arm import PlanarArm, planar_2r, planar_3r
 from jaxbal._src.robots.scara import PickAndPlace, Scara, ScaraTrajectory, joint_trajectory, scara
@@ -34,4 +37,8 @@ __all__ = [
     "planar_2r",
     "planar_3r",
     "scara",
+    "MjcfRobot",
+    "add_counter_mass",
+    "from_mjcf",
+    "from_urdf",
 ]

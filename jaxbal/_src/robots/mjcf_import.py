@@ -1,0 +1,207 @@
+"""``from_mjcf`` / ``from_urdf``: build an :class:`~jaxbal._src.robots.mjcf_robot.MjcfRobot`.
+
+The file is compiled by MuJoCo and read by :mod:`~jaxbal._src.robots.mjcf_parse`; this
+module resolves the user's choices (actuated and independent joints, end-effector site,
+pose components, payload body) from names to indices, with errors that list the valid
+names.
+
+References:
+    MuJoCo XML reference, https://mujoco.readthedocs.io/en/stable/XMLreference.html;
+    MuJoCo's URDF import, https://mujoco.readthedocs.io/en/stable/modeling.html#urdf-extensions.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import jax.numpy as jnp
+import numpy as np
+
+from jaxbal._src.robots.mjcf_parse import load_model, moving_components, parse
+from jaxbal._src.robots.mjcf_robot import MjcfRobot
+
+__all__ = ["from_mjcf", "from_urdf"]
+
+
+def _names(value) -> tuple[str, ...] | None:
+    """``None``, a comma-separated string or a sequence of names -> tuple of names."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        return tuple(v.strip() for v in value.split(",") if v.strip())
+    return tuple(value)
+
+
+def _coordinates(parsed, names: Sequence[str], what: str) -> tuple[int, ...]:
+    """``qpos`` indices of hinge/slide joints named ``names``."""
+    indices = []
+    for name in names:
+        if name not in parsed.joint_names:
+            raise ValueError(f"{what}: unknown joint {name!r}; joints: {list(parsed.joint_names)}")
+        j = parsed.joint_names.index(name)
+        if parsed.joint_types[j] == "ball":
+            raise ValueError(f"{what}: {name!r} is a ball joint; only hinges and slides")
+        indices.append(parsed.joint_qpos[j])
+    if len(set(indices)) != len(indices):
+        raise ValueError(f"{what}: repeated joints in {list(names)}")
+    return tuple(indices)
+
+
+def _moving_index(parsed, moving: tuple[int, ...], name: str, what: str) -> int:
+    if name not in parsed.body_names:
+        raise ValueError(f"{what}: unknown body {name!r}; bodies: {list(parsed.body_names)}")
+    i = parsed.body_names.index(name)
+    if i not in moving:
+        raise ValueError(f"{what}: body {name!r} is fixed to the base (no joint moves it)")
+    return moving.index(i)
+
+
+def from_mjcf(
+    source,
+    *,
+    actuated=None,
+    independent=None,
+    end_effector_site: str | None = None,
+    pose_components: Sequence[int] | None = None,
+    ik_free=None,
+    payload_body: str | None = None,
+    ignore_armature: bool = False,
+) -> MjcfRobot:
+    """A jaxbal robot from an MJCF (or URDF) mechanism: XML text, a path or an ``MjModel``.
+
+    Args:
+        source: the model (see :func:`~jaxbal._src.robots.mjcf_parse.load_model`).
+        actuated: the actuated joints (names, or ``"j1,j2"``); default: the joints that
+            carry ``<actuator>`` elements, or every hinge/slide of a serial mechanism.
+        independent: the independent joints; default: ``actuated`` for a closed chain
+            (connects), every hinge/slide for a serial mechanism. A redundantly actuated
+            mechanism (the DUAL-V) names fewer independent than actuated joints.
+        end_effector_site: the site whose position is the end-effector pose (default:
+            the model's only site, if it has exactly one).
+        pose_components: world axes of the site position in the pose (default: those
+            along which it can move, e.g. ``(0, 1)`` for a planar mechanism in the x-y
+            plane, at most as many as independent joints).
+        ik_free: joints whose values complete the pose when there are more independent
+            joints than pose components (default: the last independent ones).
+        payload_body: a moving body whose mass is the design variable ``payload``.
+        ignore_armature: accept joint armature (MuJoCo's rotor inertia, which has no
+            base reaction) and leave it out; by default it is refused.
+
+    Returns:
+        An :class:`~jaxbal._src.robots.mjcf_robot.MjcfRobot`.
+
+    Raises:
+        ValueError: a file MuJoCo cannot compile, an unsupported element (named), an
+            unknown or unsuitable name (the message lists the valid ones).
+    """
+    model = load_model(source)
+    parsed = parse(model, ignore_armature=ignore_armature)
+    moving = tuple(i for i, m in enumerate(parsed.moving) if m)
+    kinds = zip(parsed.joint_names, parsed.joint_types, strict=True)
+    hinges = tuple(name for name, kind in kinds if kind != "ball")
+    closed = bool(parsed.connect_names)
+    actuated = _names(actuated)
+    if actuated is None:
+        actuated = parsed.motors or (None if closed else hinges)
+        if actuated is None:
+            raise ValueError(
+                "closed chain without actuators: name the actuated joints (actuated=...); "
+                f"joints: {list(parsed.joint_names)}"
+            )
+    actuated_q = _coordinates(parsed, actuated, "actuated")
+    independent = _names(independent)
+    if independent is None:
+        independent = actuated if closed else hinges
+    independent_q = _coordinates(parsed, independent, "independent")
+
+    site_body, site_pos, components, free = -1, np.zeros(3), (), ()
+    if end_effector_site is None and len(parsed.site_names) == 1:
+        end_effector_site = parsed.site_names[0]
+    if end_effector_site is not None:
+        if end_effector_site not in parsed.site_names:
+            raise ValueError(
+                f"unknown site {end_effector_site!r}; sites: {list(parsed.site_names)}"
+            )
+        s = parsed.site_names.index(end_effector_site)
+        site_body, site_pos = parsed.site_body[s], parsed.site_pos[s]
+        if site_body not in moving:
+            raise ValueError(f"site {end_effector_site!r} is on a body fixed to the base")
+        if pose_components is None:
+            components = moving_components(model, s)[: len(independent_q)]
+        else:
+            components = tuple(int(c) for c in pose_components)
+            axes = set(components)
+            if not components or not axes <= {0, 1, 2} or len(axes) != len(components):
+                raise ValueError(f"pose_components must be distinct axes 0, 1, 2; got {components}")
+        free_names = _names(ik_free)
+        if free_names is None:
+            extra = max(len(independent_q) - len(components), 0)
+            free = independent_q[len(independent_q) - extra :]
+        else:
+            free = _coordinates(parsed, free_names, "ik_free")
+    payload = None
+    if payload_body is not None:
+        payload = _moving_index(parsed, moving, payload_body, "payload_body")
+    moving_array = np.asarray(moving, dtype=int)
+    refs = np.array(
+        [
+            parsed.qpos0[a] if t != "ball" else 0.0
+            for a, t in zip(parsed.joint_qpos, parsed.joint_types, strict=True)
+        ]
+    )
+    body_joints = tuple(
+        tuple(j for j, b in enumerate(parsed.joint_body) if b == i)
+        for i in range(len(parsed.body_names))
+    )
+    return MjcfRobot(
+        body_pos=jnp.asarray(parsed.body_pos),
+        body_rot=jnp.asarray(parsed.body_rot),
+        mass=jnp.asarray(parsed.mass[moving_array]),
+        com=jnp.asarray(parsed.com[moving_array]).reshape(-1, 3),
+        inertia=jnp.asarray(parsed.inertia[moving_array]).reshape(-1, 3, 3),
+        joint_axis=jnp.asarray(parsed.joint_axis),
+        joint_pos=jnp.asarray(parsed.joint_pos),
+        joint_ref=jnp.asarray(refs, dtype=float).reshape(-1),
+        anchor1=jnp.asarray(parsed.anchor1),
+        anchor2=jnp.asarray(parsed.anchor2),
+        site_pos=jnp.asarray(site_pos, dtype=float),
+        reference=jnp.asarray(parsed.qpos0),
+        counter_mass=jnp.zeros(0),
+        counter_position=jnp.zeros((0, 3)),
+        counter_inertia=jnp.zeros((0, 3, 3)),
+        body_names=parsed.body_names,
+        parents=parsed.parents,
+        body_joints=body_joints,
+        moving_bodies=moving,
+        joint_names=parsed.joint_names,
+        joint_types=parsed.joint_types,
+        joint_qpos=parsed.joint_qpos,
+        connect_names=parsed.connect_names,
+        connect_bodies=parsed.connect_bodies,
+        closure_rows=parsed.closure_rows,
+        site_name=end_effector_site,
+        site_body=site_body,
+        pose_components=components,
+        ik_free=free,
+        independent_coordinates=independent_q,
+        actuated_coordinates=actuated_q,
+        counter_bodies=(),
+        counter_names=(),
+        payload_body=payload,
+        tolerance=1e-13 * max(1.0, parsed.extent),
+    )
+
+
+def from_urdf(source, **options) -> MjcfRobot:
+    """A jaxbal robot from a URDF (text or path), through MuJoCo's URDF compiler.
+
+    MuJoCo fuses links joined by fixed joints (its ``fusestatic`` default for URDF) and
+    fixes the root link to the world; ``options`` are those of :func:`from_mjcf`.
+
+    Raises:
+        ValueError: text that is not a ``<robot>`` document, or as :func:`from_mjcf`.
+    """
+    if isinstance(source, str) and source.lstrip().startswith("<"):
+        if "<robot" not in source:
+            raise ValueError("URDF text must have a <robot> root element")
+    return from_mjcf(source, **options)
