@@ -64,5 +64,82 @@ def export_mjcf(
     typer.echo(xml)
 
 
+def _floats(text: str, option: str) -> list[float]:
+    try:
+        return [float(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"{option} must be comma-separated numbers, got {text!r}") from None
+
+
+_BALANCE_HELP = (
+    "Shaking-force peaks of a move of ROBOT and a force-balancing counter-mass design.\n\n"
+    "ROBOT is loaded with MuJoCo's compiler (hinge, slide and ball joints, connect loop "
+    "closures; see jaxbal.robots.from_mjcf). The end-effector SITE moves on a straight line "
+    "from START to END in DURATION seconds with a quintic profile; a pose lists the site's "
+    "coordinates along the axes it can move in (x,y for a mechanism in the x-y plane), in m. "
+    "The command prints the peak shaking force (N) and moment about the base origin (N·m), "
+    "then puts a point counter-mass on each counter body (the mirror image of the body's "
+    "mass about its frame origin), co-designs their positions in the body frames for the "
+    "least RMS shaking force (jaxbal.design.codesign, the motion held fixed) and prints the "
+    "design and the peaks after.\n\n"
+    "Example: jaxbal balance five_bar.xml --actuated a,b --site tip "
+    "--start -0.05,0.35 --end 0.05,0.4 --duration 0.3"
+)
+
+
+@app.command(help=_BALANCE_HELP)
+def balance(
+    robot: Path = typer.Argument(..., help="MJCF (.xml) or URDF (.urdf) file of the mechanism"),
+    start: str = typer.Option(..., "--start", help="start pose, e.g. -0.05,0.35 (m)"),
+    end: str = typer.Option(..., "--end", help="end pose, e.g. 0.05,0.40 (m)"),
+    duration: float = typer.Option(0.5, "--duration", help="move time T (s)"),
+    actuated: str = typer.Option(
+        None, "--actuated", help="actuated joints, e.g. j1,j2 (default: joints with actuators)"
+    ),
+    independent: str = typer.Option(
+        None, "--independent", help="independent joints (default: the actuated ones)"
+    ),
+    site: str = typer.Option(None, "--site", help="end-effector site (default: the only site)"),
+    samples: int = typer.Option(101, "--samples", help="instants sampled on [0, T]"),
+    counter_bodies: str = typer.Option(
+        None, "--counter-bodies", help="bodies given a counter-mass (default: all moving bodies)"
+    ),
+    free_masses: bool = typer.Option(
+        False, "--free-masses", help="optimise the counter masses too (default: positions only)"
+    ),
+):
+    """Shaking-force peaks of a move of ROBOT and a force-balancing counter-mass design."""
+    from jaxbal._src.robots.mjcf_balance import balance as codesign_counter_masses
+    from jaxbal._src.robots.mjcf_balance import pose_samples, with_counter_masses
+    from jaxbal._src.robots.mjcf_import import from_mjcf
+
+    try:
+        mechanism = from_mjcf(
+            robot, actuated=actuated, independent=independent, end_effector_site=site
+        )
+        motion = pose_samples(
+            mechanism, _floats(start, "--start"), _floats(end, "--end"), duration, samples
+        )
+        bodies = None if counter_bodies is None else counter_bodies.split(",")
+        start_design = with_counter_masses(mechanism, bodies)
+        free = ("counter_position", "counter_mass") if free_masses else ("counter_position",)
+        result = codesign_counter_masses(start_design, motion, free=free)
+    except ValueError as error:
+        typer.echo(f"error: {error}", err=True)
+        raise typer.Exit(code=2) from None
+    typer.echo(f"{robot.name}: {mechanism.dof} coordinates, move of {duration:g} s")
+    typer.echo(f"peak shaking force  {result.unbalanced_peak_force:.6g} N")
+    typer.echo(f"peak shaking moment {result.unbalanced_peak_moment:.6g} N·m")
+    typer.echo("counter-masses (position in the body frame [m]):")
+    design = result.robot.design()
+    for k, body in enumerate(result.robot.counter_bodies):
+        name = result.robot.mass_names()[body]
+        mass = float(design["counter_mass"][k])
+        x, y, z = (float(v) for v in design["counter_position"][k])
+        typer.echo(f"  {name:16s} {mass:10.6g} kg at ({x:.6g}, {y:.6g}, {z:.6g})")
+    typer.echo(f"balanced peak shaking force  {result.peak_force[1]:.6g} N")
+    typer.echo(f"balanced peak shaking moment {result.peak_moment[1]:.6g} N·m")
+
+
 if __name__ == "__main__":
     app()

@@ -1,0 +1,163 @@
+"""Balancing a mechanism read from MJCF: sampled moves and a counter-mass design.
+
+The steps of ``jaxbal balance ROBOT.xml`` (and of notebook 05), each a call into the
+generic tools:
+
+1. :func:`pose_samples` / :func:`closure_samples`: the exact joint motion ``(q, q̇,
+   q̈)`` of a straight-line move of the end-effector or of the independent joints
+   (:meth:`~jaxbal._src.robots.mjcf_robot.MjcfRobot.pose_motion`,
+   :meth:`~jaxbal._src.robots.mjcf_robot.MjcfRobot.closure_motion`, vmapped and
+   compiled once per robot structure);
+2. :func:`with_counter_masses`: a counter-mass on each chosen body, started as the
+   mirror image of the body's own mass about its frame origin;
+3. :func:`balance`: :func:`jaxbal.design.codesign` of the counter-mass positions (and,
+   optionally, masses) for the RMS shaking force, the motion held fixed, with the
+   peaks before and after.
+
+References:
+    Arakelian & Smith (2005), J. Mech. Design 127(2), §2 (force balancing by
+    counterweights); Briot, Arakelian & Le Baron (2012), eq (1) (peak shaking force).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxbal._src.design import DesignSolution, codesign
+from jaxbal._src.metrics import Motion, peak_force, peak_moment
+from jaxbal._src.profiles import Quintic
+from jaxbal._src.robots.counter_mass import add_counter_mass
+from jaxbal._src.robots.mjcf_robot import MjcfRobot
+from jaxbal._src.trajectory import StraightLine, sample, sample_times
+from jaxbal._src.validation import raise_if_invalid
+
+__all__ = ["Balance", "balance", "closure_samples", "pose_samples", "with_counter_masses"]
+
+
+@eqx.filter_jit
+def _pose_states(robot, line, times):
+    u, u_d, u_dd = sample(line, times, order=2)
+    return jax.vmap(lambda a, b, c: robot.pose_motion(a, b, c, return_valid=True))(u, u_d, u_dd)
+
+
+@eqx.filter_jit
+def _closure_states(robot, line, times):
+    u, u_d, u_dd = sample(line, times, order=2)
+    return jax.vmap(lambda a, b, c: robot.closure_motion(a, b, c, return_valid=True))(u, u_d, u_dd)
+
+
+def _samples(states, times, what: str) -> Motion:
+    q, q_d, q_dd, valid = states
+    raise_if_invalid(valid, f"{what} leaves the mechanism's reach (Newton fails) at t [s]", times)
+    return Motion(q, q_d, q_dd)
+
+
+def pose_samples(robot: MjcfRobot, start, end, duration, count: int = 101, profile=None):
+    """Exact joint motion of a straight end-effector move with a quintic profile.
+
+    Args:
+        robot: an :class:`~jaxbal._src.robots.mjcf_robot.MjcfRobot` with a site.
+        start, end: ``(m,)`` end-effector poses [m, rad] (as ``robot.end_effector``).
+        duration: move time [s].
+        count: samples on ``[0, duration]``, ends included.
+        profile: motion profile (default :class:`~jaxbal.profiles.Quintic`).
+
+    Returns:
+        A :class:`~jaxbal.design.Motion` ``(count, dof)``.
+
+    Raises:
+        ValueError: a pose of the move that Newton cannot reach (naming the instants).
+    """
+    line = StraightLine(start, end, Quintic() if profile is None else profile, duration)
+    times = sample_times(duration, count)
+    return _samples(_pose_states(robot, line, times), times, "end-effector line")
+
+
+def closure_samples(robot: MjcfRobot, start, end, duration, count: int = 101, profile=None):
+    """As :func:`pose_samples`, for a straight move of the independent joints
+    ``(m,)`` [rad, m] (loop closures solved at every instant)."""
+    line = StraightLine(start, end, Quintic() if profile is None else profile, duration)
+    times = sample_times(duration, count)
+    return _samples(_closure_states(robot, line, times), times, "joint line")
+
+
+def with_counter_masses(robot: MjcfRobot, bodies=None, scale: float = 1.0) -> MjcfRobot:
+    """``robot`` with one point counter-mass per body of ``bodies`` (default: every
+    moving body with mass), of ``scale`` times the body's mass, at the mirror image of
+    the body's COM about its frame origin (the classical counterweight's start)."""
+    names = robot.mass_names()[: len(robot.moving_bodies)]
+    mass = np.asarray(robot.mass)
+    if bodies is None:
+        bodies = [n for n, m in zip(names, mass, strict=True) if m > 0]
+    for body in bodies:
+        i = robot.body_index(body)
+        position = -np.asarray(robot.com[i]) if i < len(names) else np.zeros(3)
+        robot = add_counter_mass(robot, body, position, scale * float(mass[i]))
+    return robot
+
+
+class Balance(NamedTuple):
+    """Result of :func:`balance`.
+
+    Attributes:
+        robot: the balanced robot (counter-masses at their optimum).
+        solution: the :class:`~jaxbal.design.DesignSolution` of the co-design.
+        peak_force: ``(before, after)`` peak shaking force [N].
+        peak_moment: ``(before, after)`` peak shaking moment about the base origin [N·m].
+        unbalanced_peak_force, unbalanced_peak_moment: without counter-masses [N], [N·m].
+    """
+
+    robot: MjcfRobot
+    solution: DesignSolution
+    peak_force: tuple[float, float]
+    peak_moment: tuple[float, float]
+    unbalanced_peak_force: float
+    unbalanced_peak_moment: float
+
+
+@eqx.filter_jit
+def _peaks(robot, motion):
+    return peak_force(robot, motion), peak_moment(robot, motion)
+
+
+def balance(
+    robot: MjcfRobot,
+    motion: Motion,
+    *,
+    free=("counter_position",),
+    max_steps: int = 200,
+    gtol: float = 1e-14,
+) -> Balance:
+    """Co-design the counter-masses of ``robot`` for the RMS shaking force of ``motion``.
+
+    Args:
+        robot: a robot with counter-masses (e.g. from :func:`with_counter_masses`).
+        motion: the joint motion, held fixed (counter-masses do not change it).
+        free: design variables to optimise (default: the positions only, masses kept;
+            the force is then linear in the positions, so a force-balanceable
+            mechanism converges to a residual near round-off).
+        max_steps, gtol: L-BFGS iteration cap and gradient tolerance.
+
+    Returns:
+        A :class:`Balance`.
+    """
+    if not robot.counter_names:
+        raise ValueError("the robot has no counter-masses: use with_counter_masses first")
+    bare = robot.with_design({"counter_mass": jnp.zeros_like(robot.counter_mass)})
+    unbalanced = [float(v) for v in _peaks(bare, motion)]
+    before = [float(v) for v in _peaks(robot, motion)]
+    solution = codesign(robot, motion, "rms_force", free=free, max_steps=max_steps, gtol=gtol)
+    after = [float(v) for v in _peaks(solution.robot, motion)]
+    return Balance(
+        robot=solution.robot,
+        solution=solution,
+        peak_force=(before[0], after[0]),
+        peak_moment=(before[1], after[1]),
+        unbalanced_peak_force=unbalanced[0],
+        unbalanced_peak_moment=unbalanced[1],
+    )
