@@ -6,8 +6,9 @@ generic tools:
 1. :func:`pose_samples` / :func:`closure_samples`: the exact joint motion ``(q, q̇,
    q̈)`` of a straight-line move of the end-effector or of the independent joints
    (:meth:`~jaxbal._src.robots.mjcf_robot.MjcfRobot.pose_motion`,
-   :meth:`~jaxbal._src.robots.mjcf_robot.MjcfRobot.closure_motion`, vmapped and
-   compiled once per robot structure);
+   :meth:`~jaxbal._src.robots.mjcf_robot.MjcfRobot.closure_motion`), solved in time
+   order, each Newton solve started from the previous instant's solution (the first
+   from the robot's ``reference``), compiled once per robot structure;
 2. :func:`with_counter_masses`: a counter-mass on each chosen body, started as the
    mirror image of the body's own mass about its frame origin;
 3. :func:`balance`: :func:`jaxbal.design.codesign` of the counter-mass positions (and,
@@ -39,16 +40,32 @@ from jaxbal._src.validation import raise_if_invalid
 __all__ = ["Balance", "balance", "closure_samples", "pose_samples", "with_counter_masses"]
 
 
+def _continued(solve, start, inputs):
+    """``solve(u, u̇, ü, guess)`` at every sample in order (``lax.scan``), each Newton
+    solve starting from the previous solution (continuation: the assembly mode is
+    followed along the move; one Newton loop to compile, not a batched one)."""
+
+    def step(guess, sample_):
+        q, q_d, q_dd, valid = solve(*sample_, guess)
+        return jnp.where(valid, q, guess), (q, q_d, q_dd, valid)
+
+    return jax.lax.scan(step, start, inputs)[1]
+
+
 @eqx.filter_jit
 def _pose_states(robot, line, times):
-    u, u_d, u_dd = sample(line, times, order=2)
-    return jax.vmap(lambda a, b, c: robot.pose_motion(a, b, c, return_valid=True))(u, u_d, u_dd)
+    def solve(a, b, c, guess):
+        return robot.pose_motion(a, b, c, guess, return_valid=True)
+
+    return _continued(solve, robot.reference, sample(line, times, order=2))
 
 
 @eqx.filter_jit
 def _closure_states(robot, line, times):
-    u, u_d, u_dd = sample(line, times, order=2)
-    return jax.vmap(lambda a, b, c: robot.closure_motion(a, b, c, return_valid=True))(u, u_d, u_dd)
+    def solve(a, b, c, guess):
+        return robot.closure_motion(a, b, c, guess, return_valid=True)
+
+    return _continued(solve, robot.reference, sample(line, times, order=2))
 
 
 def _samples(states, times, what: str) -> Motion:
