@@ -105,12 +105,17 @@ def closure_samples(robot: MjcfRobot, start, end, duration, count: int = 101, pr
 
 def with_counter_masses(robot: MjcfRobot, bodies=None, scale: float = 1.0) -> MjcfRobot:
     """``robot`` with one point counter-mass per body of ``bodies`` (default: every
-    moving body with mass), of ``scale`` times the body's mass, at the mirror image of
-    the body's COM about its frame origin (the classical counterweight's start)."""
+    moving body with mass but the payload body), of ``scale`` times the body's mass, at
+    the mirror image of the body's COM about its frame origin (the classical
+    counterweight's start)."""
     names = robot.mass_names()[: len(robot.moving_bodies)]
     mass = np.asarray(robot.mass)
     if bodies is None:
-        bodies = [n for n, m in zip(names, mass, strict=True) if m > 0]
+        bodies = [
+            name
+            for i, (name, m) in enumerate(zip(names, mass, strict=True))
+            if m > 0 and i != robot.payload_body
+        ]
     for body in bodies:
         i = robot.body_index(body)
         position = -np.asarray(robot.com[i]) if i < len(names) else np.zeros(3)
