@@ -3,7 +3,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install test lint reproduce bench clean
+.PHONY: install test test-all lint reproduce bench clean
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV) || python3 -m venv $(VENV)
@@ -18,6 +18,9 @@ lint: $(STAMP)
 	$(BIN)/ruff format --check jaxbal experiments tests benchmarks
 
 test: lint
+	$(BIN)/python -m pytest -n 2 -q -m "not slow"
+
+test-all: lint
 	$(BIN)/python -m pytest -n 2 -q
 
 reproduce: $(STAMP)

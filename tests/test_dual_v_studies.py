@@ -22,6 +22,9 @@ from jaxbal.robots.dual_v_balancing import (
 )
 from jaxbal.robots.dual_v_dynamics import MotionSample
 
+# Reproduction studies (their numbers are also written by `make reproduce`): make test-all.
+pytestmark = pytest.mark.slow
+
 
 def test_quintic_duration_closed_form():
     """T = sqrt(10 S/(√3 a)) ⇔ the quintic's peak s̈ is 10/√3, at u* = 1/2 - √3/6 where

@@ -32,6 +32,10 @@ from jaxbal.mujoco import (
 )
 from jaxbal.robots import PlanarArm, Scara, by_name, dual_v, orthoglide, planar_2r, planar_3r
 
+# MuJoCo/MJX cross-checks in depth (test_contract confirms all five robots with
+# MuJoCo C in make test): make test-all.
+pytestmark = pytest.mark.slow
+
 GRAVITY = np.array([0.3, -1.0, -9.81])
 TOL = 1e-9
 

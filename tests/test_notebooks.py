@@ -36,6 +36,7 @@ def test_notebook_uses_only_the_public_api(path):
             assert face.exists(), f"{path.name}: jaxbal.{module}.{submodule} is not public"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
 def test_notebook_executes(path, monkeypatch):
     monkeypatch.setenv("MPLBACKEND", "Agg")

@@ -55,6 +55,7 @@ def table1(tmp_path_factory):
     return out, rows
 
 
+@pytest.mark.slow
 def test_briot2012_table1_matches_paper(table1):
     """Published Table 1: case 1 and 2 within 1 %, case 3 within 3 % (issue tolerance)."""
     _, rows = table1
@@ -65,6 +66,7 @@ def test_briot2012_table1_matches_paper(table1):
         assert abs(ours / paper - 1) <= tolerance[row["column"]], row
 
 
+@pytest.mark.slow
 def test_reproduce_writes_report_and_plot(table1):
     out, _ = table1
     report = (out / "REPORT.md").read_text()

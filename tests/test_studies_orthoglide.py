@@ -11,6 +11,9 @@ from jaxbal.robots import orthoglide
 from jaxbal.robots import orthoglide_studies as og
 from jaxbal.robots.orthoglide_planning import motion_cases, switching_times
 
+# Reproduction studies (their numbers are also written by `make reproduce`): make test-all.
+pytestmark = pytest.mark.slow
+
 P_START = (0.0, 0.0, 0.0)
 P_END = (-0.1, 0.07, -0.11)  # §3
 DURATION = 0.1

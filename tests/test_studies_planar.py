@@ -13,6 +13,9 @@ from jaxbal.robots import planar_2r, planar_3r
 from jaxbal.robots import planar_arm_studies as pas
 from jaxbal.robots.planar_arm import force_balanced
 
+# Reproduction studies (their numbers are also written by `make reproduce`): make test-all.
+pytestmark = pytest.mark.slow
+
 DURATION = 0.5
 RATE_LIMIT = 3.0e4  # N·m/s, §3.1
 P5, P9 = jnp.array([0.225, 0.25]), jnp.array([0.225, 0.7])  # 2R test square, Fig 3

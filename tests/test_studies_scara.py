@@ -14,6 +14,9 @@ from jaxbal.robots import PickAndPlace, scara
 from jaxbal.robots import scara_balancing as sb
 from jaxbal.robots import scara_studies as ss
 
+# Reproduction studies (their numbers are also written by `make reproduce`): make test-all.
+pytestmark = pytest.mark.slow
+
 DEG = np.pi / 180
 MOVE = PickAndPlace([0.15, 0.2, 83 * DEG], [-0.15, 0.2, 157 * DEG], 0.3, lift=0.025)
 TIMES = jaxbal.sample_times(0.3, 31)
