@@ -27,6 +27,7 @@ PUBLIC_MODULES = (
     "jaxbal.robots.scara_studies",
     "jaxbal.robots.dual_v_studies",
     "jaxbal.robots.orthoglide_studies",
+    "jaxbal.robots.mjcf_balancing",
     "jaxbal.profiles",
     "jaxbal.planning",
     "jaxbal.design",
