@@ -47,7 +47,8 @@ def _check_square(robot, unknowns: int, equations: int, what: str) -> None:
             f"{what}: {equations} equations for {unknowns} unknowns. The loop closures "
             f"give {robot.closure_count()} equations (connects {list(robot.connect_names)}) "
             f"for the {len(robot.dependent)} dependent coordinates; choose the "
-            "independent joints (independent=...) so that they match"
+            "independent joints (independent=...) so that they match (a passive freedom "
+            "that no joint names, e.g. a bar's spin between two ball joints, cannot be solved)"
         )
 
 
