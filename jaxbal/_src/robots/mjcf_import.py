@@ -188,7 +188,6 @@ def from_mjcf(
         counter_bodies=(),
         counter_names=(),
         payload_body=payload,
-        tolerance=1e-13 * max(1.0, parsed.extent),
     )
 
 
