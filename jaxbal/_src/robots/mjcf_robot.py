@@ -44,6 +44,7 @@ import numpy as np
 from jaxbal._src.robot import Bodies, Robot
 from jaxbal._src.robots.mjcf_kinematics import point_in_world, world_frames
 from jaxbal._src.robots.mjcf_solve import closure, closure_motion, inverse_kinematics, pose_motion
+from jaxbal._src.robots.mjcf_tree import mjcf_tree
 from jaxbal._src.types import Array, Coordinates, Float
 from jaxbal._src.validation import check_shape
 
@@ -239,6 +240,8 @@ class MjcfRobot(Robot):
         return self.closures_at(q, world_frames(self, q) if self.connect_names else None)
 
     def closures_at(self, q, frames) -> Float[Array, " k"]:
+        """:meth:`constraint` from already computed ``world_frames`` (``None`` without
+        connects), so that one pass of forward kinematics serves several quantities."""
         pieces = []
         if self.connect_names:
             origins, rotations = frames
@@ -279,6 +282,7 @@ class MjcfRobot(Robot):
     # --- end effector ---------------------------------------------------------------
 
     def require_site(self) -> None:
+        """Raise ``ValueError`` when the robot was built without an end-effector site."""
         if self.site_name is None:
             raise ValueError(
                 "this robot has no end-effector site: pass end_effector_site= to from_mjcf"
@@ -292,6 +296,7 @@ class MjcfRobot(Robot):
         return self.pose_at(q, world_frames(self, q))
 
     def pose_at(self, q, frames) -> Float[Array, " m"]:
+        """:meth:`end_effector` from already computed ``world_frames``."""
         site = point_in_world(*frames, self.site_body, self.site_pos)
         free = q[np.asarray(self.ik_free, dtype=int)]
         return jnp.concatenate([site[np.asarray(self.pose_components, dtype=int)], free])
@@ -340,6 +345,17 @@ class MjcfRobot(Robot):
         return design
 
     def with_design(self, design: Mapping) -> MjcfRobot:
+        """The robot with some design variables replaced (see :meth:`design`).
+
+        Raises:
+            ValueError: an unknown name (``payload`` without a ``payload_body``
+                included) or a wrong shape.
+        """
+        if "payload" in design and self.payload_body is None:
+            raise ValueError(
+                "unknown design variable 'payload': name a payload body (payload_body=) "
+                f"in from_mjcf; this robot has {sorted(self.design())}"
+            )
         robot = super().with_design({k: v for k, v in design.items() if k != "payload"})
         if "payload" in design:
             value = jnp.asarray(design["payload"], dtype=float)
@@ -367,6 +383,4 @@ class MjcfRobot(Robot):
     def mujoco_tree(self):
         """The parsed tree rebuilt for MuJoCo, counter-masses welded to their bodies
         (see :func:`~jaxbal._src.robots.mjcf_tree.mjcf_tree`)."""
-        from jaxbal._src.robots.mjcf_tree import mjcf_tree
-
         return mjcf_tree(self)

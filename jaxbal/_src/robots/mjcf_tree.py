@@ -40,6 +40,18 @@ def _rotation(matrix) -> tuple:
     return tuple(vec(*row) for row in np.asarray(matrix, dtype=float))
 
 
+def _visual_end(robot, i: int, body_pos) -> tuple[float, float, float] | None:
+    """End of the capsule drawn for body ``i`` in the viewer: its first child off its
+    origin, else a connect anchor or the end-effector site on it (body frame) [m]."""
+    ends = [body_pos[c] for c, parent in enumerate(robot.parents) if parent == i]
+    for c, (b1, b2) in enumerate(robot.connect_bodies):
+        ends += [robot.anchor1[c]] if b1 == i else []
+        ends += [robot.anchor2[c]] if b2 == i else []
+    ends += [robot.site_pos] if robot.site_body == i else []
+    ends = [np.asarray(end, dtype=float) for end in ends]
+    return next((vec(end) for end in ends if np.linalg.norm(end) > 1e-9), None)
+
+
 def mjcf_tree(robot) -> Tree:
     """:class:`~jaxbal._src.mujoco.tree.Tree` of ``robot`` (a concrete
     :class:`~jaxbal._src.robots.mjcf_robot.MjcfRobot`), see the module docstring."""
@@ -62,7 +74,8 @@ def mjcf_tree(robot) -> Tree:
             for j in robot.body_joints[i]
         )
         name = robot.body_names[i]
-        bodies.append(TreeBody(name, parent_name, vec(pos), _rotation(rot), joints))
+        link = _visual_end(robot, i, body_pos)
+        bodies.append(TreeBody(name, parent_name, vec(pos), _rotation(rot), joints, link))
         for c, body in enumerate(robot.counter_bodies):
             if body == k:
                 bodies.append(TreeBody(robot.counter_names[c], name))
