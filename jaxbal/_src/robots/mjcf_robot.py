@@ -264,9 +264,8 @@ class MjcfRobot(Robot):
 
     def assemble(self, independent, dependent) -> Coordinates:
         """``q`` from the independent and the dependent coordinates."""
-        q = jnp.zeros(self.dof)
-        q = q.at[np.asarray(self.independent_coordinates, dtype=int)].set(independent)
-        return q.at[np.asarray(self.dependent, dtype=int)].set(dependent)
+        order = np.argsort(np.array(self.independent_coordinates + self.dependent, dtype=int))
+        return jnp.concatenate([jnp.asarray(independent), jnp.asarray(dependent)])[order]
 
     def closure(self, q_independent, guess=None, *, return_valid: bool = False):
         """All coordinates ``q (dof,)`` from the independent ones ``(m,)`` (loop
