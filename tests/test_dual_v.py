@@ -215,6 +215,7 @@ def test_forward_dynamics_inverts_paper_model():
     np.testing.assert_allclose(recovered, qdd, atol=1e-9 * float(jnp.max(jnp.abs(qdd))))
 
 
+@pytest.mark.slow
 def test_bearing_forces_sum_to_shaking_wrench():
     """Σ(-F_A,i) = shaking force and Σ A_i×(-F_A,i) - Στ = shaking moment (tol 1e-9)."""
     robot = dual_v()
@@ -276,6 +277,7 @@ def _triangle(samples):
     return tuple(jnp.concatenate([p[i] for p in pieces]) for i in range(3))
 
 
+@pytest.mark.slow
 def test_codesign_recovers_eq1():
     """L-BFGS co-design with zero inertia penalty recovers eq (1) to 1e-6 (symmetric
     start); with a penalty p_cm → radius of gyration sqrt(I_cm/m_cm) (closed form)."""

@@ -246,6 +246,7 @@ def test_com_plan_gives_constant_bang_bang_force():
     np.testing.assert_allclose(jnp.linalg.norm(force, axis=1), expected / DURATION**2, rtol=1e-10)
 
 
+@pytest.mark.slow
 def test_table1_payload0_and_gradient_through_planner():
     # reference: Table 1 (payload 0): case 1 117.99 N, case 3 78.86 N, within 1 %;
     # d max|F| / d payload of case 3 through the COM planner vs the closed form M·4|D|/T²

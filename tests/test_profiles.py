@@ -71,6 +71,7 @@ def test_trapezoid_plateau_value_closed_form():
     np.testing.assert_allclose(float(sd[0]), area, rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_profile_gradients_finite_differences():
     def position(params, u):
         return TrapezoidalAcceleration(params[0], params[1])(u)

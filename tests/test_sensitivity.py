@@ -105,6 +105,7 @@ def com_plan_2r(robot):
     return motion_samples(robot, plan, jnp.linspace(0.0, PLAN_DURATION, SAMPLES))
 
 
+@pytest.mark.slow
 def test_replanned_motion_includes_the_plan():
     """With the motion re-planned from the design (COM plan of the 2R), the payload and
     counter-mass sensitivities of the RMS force equal central finite differences of
