@@ -23,6 +23,7 @@ import jax.numpy as jnp
 from jaxbal._src.linalg import cross, matmul_transposed, matvec, rmatvec, vee, weighted_sum
 from jaxbal._src.planar import PlanarRobot, planar_inertial_wrench
 from jaxbal._src.robot import Robot
+from jaxbal._src.straight_line import straight_line
 from jaxbal._src.types import Coordinates, Points, Rotations, Scalar, Vec3
 from jaxbal._src.validation import check_shape, guard
 
@@ -156,9 +157,17 @@ def shaking_wrench(
             inertia (a robot changed with ``eqx.tree_at`` included). Under ``jit`` the
             same value checks raise at run time (:func:`jaxbal.set_runtime_checks`).
 
+    Performance: under ``jit``/``vmap``/``grad`` the evaluation is replayed as
+    straight-line scalar code (:mod:`jaxbal._src.straight_line`): the same operations,
+    fused by XLA like a hand-written closed form of the robot.
+
     References:
         Briot et al. (2012), eq (1); van der Wijk et al. (2013), section 2.
     """
+    return _straight_wrench(robot, q, qd, qdd, gravity)
+
+
+def _shaking_wrench(robot: Robot, q, qd, qdd, gravity):
     q, qd, qdd = checked_state(robot, q, qd, qdd)
     if isinstance(robot, PlanarRobot):
         force, moment = planar_inertial_wrench(robot, q, qd, qdd)
@@ -175,3 +184,6 @@ def shaking_wrench(
             bodies.mass, cross(positions, jnp.broadcast_to(g, positions.shape))
         )
     return force, moment
+
+
+_straight_wrench = straight_line(_shaking_wrench)
