@@ -25,7 +25,7 @@ from jaxbal._src.planar import PlanarRobot, planar_inertial_wrench
 from jaxbal._src.robot import Robot
 from jaxbal._src.straight_line import straight_line
 from jaxbal._src.types import Coordinates, Points, Rotations, Scalar, Vec3
-from jaxbal._src.validation import check_shape, guard
+from jaxbal._src.validation import check_shape, guard, runtime_checks_enabled
 
 #: Tolerance of the sign checks [kg, kg·m²]: derived masses and inertias that are zero
 #: up to rounding (e.g. ``I + m p² − m p²``) are accepted.
@@ -186,4 +186,4 @@ def _shaking_wrench(robot: Robot, q, qd, qdd, gravity):
     return force, moment
 
 
-_straight_wrench = straight_line(_shaking_wrench)
+_straight_wrench = straight_line(_shaking_wrench, context=runtime_checks_enabled)

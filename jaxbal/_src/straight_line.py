@@ -23,6 +23,7 @@ eager calls run the original function, whose value checks raise ``ValueError``.
 from __future__ import annotations
 
 import functools
+from collections import OrderedDict
 
 import jax
 import jax.numpy as jnp
@@ -362,12 +363,72 @@ def evaluate(jaxpr, consts, args) -> list[np.ndarray]:
     return [read(v) for v in jaxpr.outvars]
 
 
-def straight_line(fn):
+#: Above this many scalar results (summed over the jaxpr's equations) the replay would
+#: trace and compile too long (a mechanism with hundreds of bodies): ``fn`` runs as is.
+MAX_SCALARS = 40_000
+#: Generated programs kept per wrapped function (least recently used dropped).
+CACHE_SIZE = 64
+
+
+def scalar_count(jaxpr) -> int:
+    """Scalar results of all equations of ``jaxpr``, nested calls included."""
+    total = 0
+    for eqn in jaxpr.eqns:
+        total += sum(int(np.prod(v.aval.shape, dtype=int)) for v in eqn.outvars)
+        for sub in core.jaxprs_in_params(eqn.params):
+            total += scalar_count(sub)
+    return total
+
+
+def _leaf_key(leaf):
+    """Cache key of one argument leaf: the abstract value of a traced leaf, the value
+    of a concrete one (it is folded into the generated code)."""
+    if isinstance(leaf, jax.core.Tracer):
+        aval = leaf.aval
+        return ("traced", aval.shape, str(aval.dtype), bool(getattr(aval, "weak_type", False)))
+    value = np.asarray(leaf)
+    return ("const", type(leaf).__name__, value.shape, str(value.dtype), value.tobytes())
+
+
+def _generate(fn, leaves, treedef, traced):
+    """``(jitted straight-line program, output treedef)`` of ``fn`` for these argument
+    leaves, or ``None`` when ``fn`` is larger than :data:`MAX_SCALARS`."""
+    specs = [
+        jax.ShapeDtypeStruct(leaf.aval.shape, leaf.aval.dtype)
+        for leaf, t in zip(leaves, traced, strict=True)
+        if t
+    ]
+
+    def inner(*values):
+        it = iter(values)
+        full = [next(it) if t else leaf for leaf, t in zip(leaves, traced, strict=True)]
+        return fn(*jax.tree_util.tree_unflatten(treedef, full))
+
+    closed, shapes = jax.make_jaxpr(inner, return_shape=True)(*specs)
+    if scalar_count(closed.jaxpr) > MAX_SCALARS:
+        return None
+    flat_shapes, out_tree = jax.tree_util.tree_flatten(shapes)
+
+    def program(*values):
+        outs = evaluate(closed.jaxpr, closed.consts, [split(v) for v in values])
+        return [join(o, s.dtype) for o, s in zip(outs, flat_shapes, strict=True)]
+
+    # The generated program is traced once and kept as one jaxpr: later traces (under
+    # other jit/vmap/grad contexts) reuse it and JAX's caches of its transformations.
+    generated = jax.make_jaxpr(program)(*specs)
+    return jax.jit(core.jaxpr_as_fun(generated)), out_tree
+
+
+def straight_line(fn, context=lambda: ()):
     """``fn``, evaluated as straight-line scalar code whenever it is traced.
 
     The arguments' traced leaves become the inputs of the generated code; concrete
     leaves (e.g. a robot closed over by ``vmap``) are folded into it as constants.
+    Functions larger than :data:`MAX_SCALARS` are evaluated as they are. The generated
+    code is cached on the argument structure, the traced leaves' shapes and dtypes, the
+    concrete leaves' values and ``context()`` (global switches read while tracing).
     """
+    cache: OrderedDict = OrderedDict()
 
     @functools.wraps(fn)
     def wrapped(*args):
@@ -375,17 +436,23 @@ def straight_line(fn):
         traced = [isinstance(leaf, jax.core.Tracer) for leaf in leaves]
         if not any(traced):
             return fn(*args)
+        key = (treedef, tuple(_leaf_key(leaf) for leaf in leaves), context())
+        try:
+            generated = cache.get(key)
+        except TypeError:  # an unhashable static field: generate without caching
+            key, generated = None, None
+        if generated is None:
+            generated = _generate(fn, leaves, treedef, traced) or (None, None)
+            if key is not None:
+                cache[key] = generated
+                if len(cache) > CACHE_SIZE:
+                    cache.popitem(last=False)
+        else:
+            cache.move_to_end(key)
+        program, out_tree = generated
+        if program is None:
+            return fn(*args)
         dynamic = [leaf for leaf, t in zip(leaves, traced, strict=True) if t]
-
-        def inner(*values):
-            it = iter(values)
-            full = [next(it) if t else leaf for leaf, t in zip(leaves, traced, strict=True)]
-            return fn(*jax.tree_util.tree_unflatten(treedef, full))
-
-        closed, shapes = jax.make_jaxpr(inner, return_shape=True)(*dynamic)
-        outs = evaluate(closed.jaxpr, closed.consts, [split(d) for d in dynamic])
-        flat_shapes, out_tree = jax.tree_util.tree_flatten(shapes)
-        arrays = [join(o, s.dtype) for o, s in zip(outs, flat_shapes, strict=True)]
-        return jax.tree_util.tree_unflatten(out_tree, arrays)
+        return jax.tree_util.tree_unflatten(out_tree, program(*dynamic))
 
     return wrapped
