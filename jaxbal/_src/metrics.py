@@ -41,6 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.actuation import actuator_torques
+from jaxbal._src.callables import as_pytree
 from jaxbal._src.linalg import matvec
 from jaxbal._src.momentum import body_com_poses, shaking_wrench
 from jaxbal._src.motion import state_valid
@@ -133,7 +134,8 @@ def motion_samples(robot: Robot, trajectories, times) -> Motion:
     for trajectory, instants in zip(trajectories, times, strict=True):
         if instants.ndim != 1:
             raise ValueError(f"times must have shape (t,), got {instants.shape}")
-        q, qd, qdd = _sample(trajectory, instants)
+        # A lambda or closure as a pytree: an equivalent new one reuses the compilation.
+        q, qd, qdd = _sample(as_pytree(trajectory), instants)
         raise_if_invalid(
             _valid(robot, q, qd, qdd),
             f"trajectory leaves the loop closures of {type(robot).__name__} (or is not "
