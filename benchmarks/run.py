@@ -35,17 +35,7 @@ sys.path.insert(0, str(HERE))
 import codesign_bench  # noqa: E402
 import wrench_bench  # noqa: E402
 from cases import MOVES  # noqa: E402
-
-BENCH_START, BENCH_END = "<!-- bench:start -->", "<!-- bench:end -->"
-TARGETS = {
-    "generic_over_closed_form_time": 1.5,
-    "speedup_vs_mujoco_c_loop_all_devices_2r": 50.0,
-    "speedup_vs_before_dual_v_orthoglide": 5.0,
-    "grad_over_value": 2.0,
-    "first_call_seconds": 1.5,
-    "warm_first_call_seconds": 0.5,
-    "codesign_speedup_compiled_20_variables": 20.0,
-}
+from readme_block import TARGETS, update_readme  # noqa: E402
 
 
 def first_calls(name: str, checks: bool) -> dict:
@@ -93,77 +83,6 @@ def run(args) -> dict:
     print("[bench] co-design vs SciPy SLSQP", flush=True)
     result["codesign"] = codesign_bench.bench_all()
     return result
-
-
-def bench_block(result: dict) -> str:
-    """The README table (between the bench markers) rendered from a result dict."""
-    machine = result["machine"]
-    lines = [
-        BENCH_START,
-        f"Measured by `make bench` on {len(machine['devices'])}× {machine['devices'][0]} "
-        f"({machine['platform']}), jax {machine['jax']}, mujoco {machine['mujoco']}; "
-        "full numbers in `benchmarks/results/`.",
-        "",
-        "| robot | generic wrench [states/s], 1 device | all devices | × before "
-        "| × MuJoCo C loop (all devices) | × MJX | grad/value | first grad [s] | "
-        "memory [B/state] |",
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|",
-    ]
-    for name, r in result["robots"].items():
-        lines.append(
-            f"| {name} | {r['generic_states_per_second']:.3g} | "
-            f"{r['generic_all_devices_states_per_second']:.3g} | {r['speedup_vs_before']:.1f} | "
-            f"{r['speedup_vs_mujoco_c_loop_all_devices']:.0f} | {r['speedup_vs_mjx']:.0f} | "
-            f"{r['gradient']['grad_over_value']:.2f} | "
-            f"{r['gradient']['first_call_grad_seconds']:.2f} | "
-            f"{r['memory_bytes_per_state_chunked']:.0f} |"
-        )
-    two = result["robots"].get("planar_2r")
-    if two:
-        lines += [
-            "",
-            f"2R: generic / hand-written closed form time = "
-            f"{two['generic_over_closed_form_time']:.2f} (target ≤ "
-            f"{TARGETS['generic_over_closed_form_time']}); agreement with MuJoCo C "
-            f"{two['max_relative_difference_vs_mujoco']:.1e} (relative).",
-        ]
-    lines += [
-        "",
-        "| first call in a fresh process [s] | grad, cold | grad, warm cache | co-design, cold "
-        "| co-design, warm |",
-        "|---|---:|---:|---:|---:|",
-    ]
-    for name, modes in result["first_call"].items():
-        for mode, runs in modes.items():
-            cold, warm = runs["cold"], runs["warm"]
-            lines.append(
-                f"| {name}, runtime checks {mode.split('_')[1]} | "
-                f"{cold['first_grad_seconds']:.2f} | {warm['first_grad_seconds']:.2f} | "
-                f"{cold['first_codesign_seconds']:.2f} | {warm['first_codesign_seconds']:.2f} |"
-            )
-    lines += [
-        "",
-        "| co-design vs SciPy SLSQP + finite differences | variables | × with compile "
-        "| × compiled | objective rel. diff. |",
-        "|---|---:|---:|---:|---:|",
-    ]
-    for name, c in result["codesign"].items():
-        diff = abs(c["objective_jaxbal"] - c["objective_scipy"]) / abs(c["objective_scipy"])
-        lines.append(
-            f"| {name} | {c['variables']} | {c['speedup_with_compile']:.2f} | "
-            f"{c['speedup_compiled']:.2f} | {diff:.1e} |"
-        )
-    lines.append(BENCH_END)
-    return "\n".join(lines)
-
-
-def update_readme(readme: Path, result: dict) -> None:
-    """Write :func:`bench_block` between the bench markers of ``readme``."""
-    text = readme.read_text()
-    start, end = text.find(BENCH_START), text.find(BENCH_END)
-    if start < 0 or end < 0:
-        return
-    atomic_write_text(readme, text[:start] + bench_block(result) + text[end + len(BENCH_END) :])
 
 
 def main():

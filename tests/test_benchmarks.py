@@ -1,0 +1,25 @@
+"""The README quotes the stored benchmark result: its bench block equals the block
+rendered from benchmarks/results/bench_cpu.json (run `make bench` to refresh both)."""
+
+import json
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from readme_block import BENCH_END, BENCH_START, bench_block  # noqa: E402
+
+
+def test_readme_bench_block_equals_the_stored_result():
+    result = json.loads((ROOT / "benchmarks" / "results" / "bench_cpu.json").read_text())
+    readme = (ROOT / "README.md").read_text()
+    start, end = readme.index(BENCH_START), readme.index(BENCH_END) + len(BENCH_END)
+    assert readme[start:end] == bench_block(result)
+
+
+def test_stored_result_covers_the_five_robots_and_agrees_with_mujoco():
+    result = json.loads((ROOT / "benchmarks" / "results" / "bench_cpu.json").read_text())
+    assert set(result["robots"]) == {"planar_2r", "planar_3r", "scara", "dual_v", "orthoglide"}
+    for name, robot in result["robots"].items():
+        assert robot["max_relative_difference_vs_mujoco"] < 1e-9, name
