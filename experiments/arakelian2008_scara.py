@@ -58,6 +58,8 @@ def run(ctx) -> Result:
             row = f"eq {eq}: m_i·abs(l_OiSi) / required, {label}"
             table.add("printed design", row, ratio, "-", 1.0)
 
+    table.mark("convention", rows=("closed-form design",))  # r_c = 0.16 m selected here
+    table.mark("by construction", rows=("printed design",))  # 1.0: the paper's own eqs
     # --- shaking wrench along the paper's move (Figs 4, 6) ------------------------
     ctx.progress("shaking wrench")
     cases = ss.balancing_cases(PAPER_MOVE, robot)

@@ -8,6 +8,8 @@ curves over Δm and as exact gradients through the COM planner.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import jax.numpy as jnp
 import matplotlib
 
@@ -44,7 +46,16 @@ SENSITIVITY_PANELS = (
     (2, "M case 4 − case 3 [N·m]", "moment"),
 )
 COM_PAYLOAD = 2.0  # kg: the payload for which §3's COM coordinates are reproduced
-DELTA_M = 0.1  # kg, payload error of §3.3 (not given in the paper)
+PAPER_TABLE3 = {  # §3.3, payloads 1-5 kg (+ Δm)
+    "case3": (157.73, 223.60, 289.49, 355.40, 421.32),
+    "case4": (158.36, 223.95, 289.70, 355.51, 421.36),
+    "difference": (0.63, 0.35, 0.20, 0.11, 0.04),
+}
+PAPER_TABLE4 = {
+    "case3": (47.30, 65.44, 83.55, 101.63, 119.70),
+    "case4": (47.74, 65.75, 83.78, 101.82, 119.86),
+    "difference": (0.43, 0.30, 0.23, 0.19, 0.16),
+}
 DELTA_SWEEP = jnp.linspace(-0.5, 0.5, 21)  # kg, sensitivity curves
 
 PAPER_RHO = {"rho_xi": 0.31, "rho_yi": 0.31, "rho_zi": 0.31}
@@ -55,6 +66,12 @@ PAPER_KINEMATICS = {
     **PAPER_RHO, **PAPER_RHO_F, **PAPER_COM, **{k + "_rounded": v for k, v in PAPER_COM.items()},
     "a_com": 38.7, "theoretical_reduction": 30.7,
 }  # fmt: skip
+KINDS = {  # what agreement means for each kinematic entry (default: predicted)
+    **{f"rho_{a}i": "by construction" for a in "xyz"},  # ρ = L at the home pose
+    **{k: "convention" for k in PAPER_COM},  # the 2 kg payload was chosen to match them
+    **{k + "_rounded": "by construction" for k in PAPER_COM},  # duplicates, rounded
+    "a_com": "convention",  # the mass naming of eq (6) was chosen to match 38.7 m/s²
+}
 PAPER_TABLE1 = {
     "case1": (117.99, 212.08, 306.73, 401.55, 496.43, 591.35),
     "case2": (88.56, 152.82, 218.08, 283.65, 349.36, 415.14),
@@ -80,7 +97,7 @@ def run(ctx) -> Result:
     ctx.progress("kinematics")
     kin = Table("orthoglide2021_kinematics", "§3: inputs, COM and COM acceleration", tolerance=0.03)
     for name, (value, unit) in og.kinematic_summary(robot, *move, COM_PAYLOAD).items():
-        kin.add(name, "value", value, unit, PAPER_KINEMATICS.get(name))
+        kin.add(name, "value", value, unit, PAPER_KINEMATICS.get(name), KINDS.get(name))
 
     # --- §3.2: Tables 1 and 2 (vmap over the payloads), the fit of l and c re-run -------
     ctx.progress("Tables 1-2")
@@ -95,6 +112,7 @@ def run(ctx) -> Result:
             ("table2_origin", "Max shaking moment [N·m] about O", about_o, "N*m", None, None),
         )
     )
+    table2.mark("fitted")  # l and c were fitted to these 18 entries (orthoglide2021_table2_fit)
     paper2 = jnp.array([PAPER_TABLE2[f"case{k + 1}"] for k in range(3)]).T
     used = {"used above (earlier fit, rounded)": (SLIDER_OFFSET, reference)}
     fit_title = "Table 2: slider offset l and reference point c"
@@ -121,15 +139,24 @@ def run(ctx) -> Result:
 
     # --- §3.3: sensitivity to the payload error (exact derivatives w.r.t. Δm) ----------
     ctx.progress("sensitivity")
-    nominal, delta = payloads[1:], jnp.asarray(DELTA_M)
+    # Δm is not printed: Table 3's case 3 is Table 1's case 3 at m + Δm (interpolated).
+    t1, t3 = jnp.asarray(PAPER_TABLE1["case3"]), jnp.asarray(PAPER_TABLE3["case3"])
+    steps = jnp.diff(t1)  # per kg, between consecutive payloads
+    implied = jnp.mean((t3 - t1[1:]) / jnp.concatenate([steps[1:], steps[-1:]]))
+    delta_m = round(float(implied), 2)
+    nominal, delta = payloads[1:], jnp.asarray(delta_m)
     values = og.payload_error_peaks(robot, nominal, delta, *move, reference, SAMPLES)  # (5, 4)
     slopes = og.payload_error_slopes(robot, nominal, delta, *move, reference, SAMPLES)
     table3, table4 = (
         og.payload_error_table(
-            f"orthoglide2021_table{3 + k}", f"Max shaking {quantity}, Δm = {DELTA_M} kg",
+            f"orthoglide2021_table{3 + k}", f"Max shaking {quantity}, Δm = {delta_m} kg",
             PAYLOADS[1:], values[:, 2 * k : 2 * k + 2], slopes[:, 2 * k : 2 * k + 2], unit,
+            paper, kinds, 0.005,
         )
-        for k, (quantity, unit) in enumerate((("force [N]", "N"), ("moment [N·m]", "N*m")))
+        for k, (quantity, unit, paper, kinds) in enumerate((
+            ("force [N]", "N", PAPER_TABLE3, {"case3": "fitted"}),
+            ("moment [N·m]", "N*m", PAPER_TABLE4, {}),
+        ))
     )  # fmt: skip
     sweep = og.payload_error_peaks(robot, nominal, DELTA_SWEEP, *move, reference, SAMPLES)
     labels = [f"{payload:g} kg" for payload in PAYLOADS[1:]]
@@ -140,51 +167,14 @@ def run(ctx) -> Result:
     path = ctx.figure_path("geng2021_sensitivity_orthoglide")
     figures.append(plot_histories(path, DELTA_SWEEP, panels, None, **SWEEP_AXES))
     a_com = {entry.row: entry.value for entry in kin.entries}["a_com"]
-    notes = NOTES.format(a_com=a_com, l=SLIDER_OFFSET, c=MOMENT_REFERENCE, dm=DELTA_M)
+    notes = NOTES.format(
+        a_com=a_com, l=SLIDER_OFFSET, c=MOMENT_REFERENCE, dm=delta_m, dm_implied=float(implied)
+    )
     tables = [kin, table1, table2, table2o, fit_table, table3, table4, *mjx_tables]
     return Result(tables=tables, figures=figures, notes=notes)
 
 
-NOTES = """
-**Model** (`jaxbal.robots.orthoglide`). Three PRPaR legs, L = 0.31 m, s = +1 (§3), no
-gravity; masses as eq (6) reads them (parallelograms 0.396 kg, sliders 0.248 kg, joint P
-0.1 kg, payload a point mass at P): §3 swaps the words (with 0.396 kg "sliders" the
-designed COM acceleration is 34.3 m/s², not 38.7; ours {a_com:.2f} m/s²) and the
-prismatic-joint labels (eq (1) gives ρ_xf = 0.18, ρ_yf = 0.34). Case 3 solves eqs (6), (1)
-by Newton's method with implicit differentiation: every number below is differentiable.
-
-**Table 1** (force) depends only on masses and kinematics (no gravity; with gravity the
-errors grow to 7-19 %). Case 1 is 0.07-0.14 % low, case 3 0.23-0.35 % low (the paper's
-78.86 N / 2.032 kg needs 38.81 m/s²), case 2 at 0 kg 0.43 % high: our maximum is the exact
-supremum, just before the bang-bang switch at T/2. A reduction's "rel. diff" is relative
-to the percentage.
-
-**Table 2** (moment). About the intersection O of the prismatic axes the payload adds no
-moment (it moves on a line through O), while the paper's grows by 26 N·m per kg: ADAMS took
-it about another point c, 0.274 m from the path (25.97/94.87). The tables use
-slender-bar parallelograms and l = {l} m, c = {c} m, an earlier least-squares fit to the 18
-entries rounded to 1 mm; `orthoglide2021_table2_fit` re-runs the fit (relative errors)
-and gives each point's rms and max relative error through the whole pipeline. The fit is
-not unique (another minimum, not physical, has l ≈ 0.64 m; with l = 0 the max error is
-1 %): l and c are modelling assumptions. Moments about O: `orthoglide2021_table2_origin`.
-
-**MJX confirmation.** For each of the 18 trajectories of Tables 1-2 (51 samples, the
-switch at T/2 included), the largest difference between jaxbal's shaking force/moment and
-the base reaction of `mjx.inverse` (a tree closed by `connect` constraints), relative to
-the peak gross inertial force/moment, about O; tolerance 1e-6.
-
-**COM coordinates of §3** are those of the robot carrying **2 kg** (unloaded, their
-difference would give 58 m/s², not 38.7, for any l); all six rounded values are reproduced
-for 0.067 m ≤ l ≤ 0.169 m, which contains the fitted l. ρ_zf = 0.17496 m is printed 0.17.
-The theoretical 30.7 % (1 − 4/(10/√3)) is the reduction of the peak COM acceleration; as
-the payload grows the COM tends to P and the case-3 reduction tends to it.
-
-**Sensitivity (§3.3).** Δm = {dm} kg (not given). Case 3: COM plan made for the true
-payload m + Δm; case 4: made for m, run with m + Δm. `dcase3_ddm` is the exact derivative
-through the planner, `dcase4_ddm` with the plan fixed. The case-3 force has a constant
-norm, so case 4 − case 3 is ≥ 0 for both signs of Δm, with a kink at Δm = 0 (figure); it is
-small and decreases as the payload grows, as in the paper.
-"""
+NOTES = Path(__file__).with_name("geng2021_orthoglide_notes.md").read_text()
 
 EXPERIMENT = Experiment(
     name="geng2021_orthoglide",

@@ -2,8 +2,14 @@
 
 Every published number an experiment reproduces becomes one :class:`Entry`; a
 :class:`Table` of entries is written as a tidy CSV with the columns
-``table,row,column,value,unit,paper`` (``paper`` empty where the paper gives no
-number or the number is withheld). Files are written atomically: to a temporary file
+``table,row,column,value,unit,paper,kind`` (``paper`` empty where the paper gives no
+number). ``kind`` says what agreement with the paper means for that entry
+(:data:`KINDS`): **predicted** (nothing was chosen using this table), **convention** (a
+choice made once, documented, that this table selected), **fitted** (parameters fitted
+to this table), **by construction** (the input was designed to produce it) or
+**alternative reading** (a stated reading of the paper, beside the as-printed one).
+Only predicted entries count as reproduced in the README summary. Files are written
+atomically: to a temporary file
 in the same directory, then renamed, so an interrupted run never leaves a half file.
 """
 
@@ -15,10 +21,11 @@ import math
 import os
 import tempfile
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-CSV_COLUMNS = ("table", "row", "column", "value", "unit", "paper")
+CSV_COLUMNS = ("table", "row", "column", "value", "unit", "paper", "kind")
+KINDS = ("predicted", "convention", "fitted", "by construction", "alternative reading")
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> Path:
@@ -63,6 +70,7 @@ class Entry:
     value: float
     unit: str
     paper: float | None = None
+    kind: str | None = None  # one of KINDS where ``paper`` is given
 
     @property
     def relative_difference(self) -> float | None:
@@ -79,9 +87,32 @@ class Table:
     title: str
     tolerance: float | None = None  # relative tolerance used to flag misses in REPORT.md
     entries: list[Entry] = field(default_factory=list, kw_only=True)
+    kind: str = field(default="predicted", kw_only=True)  # default kind of its entries
 
-    def add(self, row, column, value, unit, paper=None) -> None:
-        self.entries.append(Entry(row, column, float(value), unit, paper))
+    def add(self, row, column, value, unit, paper=None, kind=None) -> None:
+        """Add one entry; ``kind`` (default: the table's) is kept where ``paper`` is given."""
+        kind = kind or self.kind
+        if kind not in KINDS:
+            raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+        self.entries.append(
+            Entry(row, column, float(value), unit, paper, kind if paper is not None else None)
+        )
+
+    def mark(self, kind: str, rows=None, columns=None) -> None:
+        """Set the kind of the entries with a paper value (those of ``rows`` and
+        ``columns`` if given; names or predicates)."""
+        if kind not in KINDS:
+            raise ValueError(f"kind must be one of {KINDS}, got {kind!r}")
+
+        def chosen(name, which):
+            return which is None or (which(name) if callable(which) else name in which)
+
+        self.entries = [
+            replace(e, kind=kind)
+            if e.paper is not None and chosen(e.row, rows) and chosen(e.column, columns)
+            else e
+            for e in self.entries
+        ]
 
     def to_csv(self) -> str:
         buffer = io.StringIO()
@@ -89,13 +120,14 @@ class Table:
         writer.writerow(CSV_COLUMNS)
         for e in self.entries:
             paper = "" if e.paper is None else repr(float(e.paper))
-            writer.writerow([self.id, e.row, e.column, repr(float(e.value)), e.unit, paper])
+            kind = e.kind or ""
+            writer.writerow([self.id, e.row, e.column, repr(float(e.value)), e.unit, paper, kind])
         return buffer.getvalue()
 
     def to_markdown(self) -> str:
         rows = [
-            "| row | column | ours | paper | rel. diff | unit |",
-            "|---|---|---:|---:|---:|---|",
+            "| row | column | ours | paper | rel. diff | unit | kind |",
+            "|---|---|---:|---:|---:|---|---|",
         ]
         for e in self.entries:
             rel = e.relative_difference
@@ -103,9 +135,10 @@ class Table:
             if rel is not None and self.tolerance is not None and abs(rel) > self.tolerance:
                 flag = " ⚠"
             rel_text = "" if rel is None else f"{100 * rel:+.2f}%{flag}"
-            paper = "withheld / not given" if e.paper is None else f"{e.paper:.4g}"
+            paper = "not given" if e.paper is None else f"{e.paper:.4g}"
             rows.append(
-                f"| {e.row} | {e.column} | {e.value:.4g} | {paper} | {rel_text} | {e.unit} |"
+                f"| {e.row} | {e.column} | {e.value:.4g} | {paper} | {rel_text} | {e.unit} "
+                f"| {e.kind or ''} |"
             )
         return "\n".join(rows)
 
@@ -167,24 +200,35 @@ def render_report(results: list[tuple[Experiment, Result]]) -> str:
 
 
 def render_summary(results: list[tuple[Experiment, Result]]) -> str:
-    """The short table of reproduced results quoted in README.md."""
+    """The short table of reproduced results quoted in README.md: per table, the
+    predicted entries within tolerance apart from every other kind."""
     lines = [
-        "| table | numbers | with a paper value | within the table's tolerance "
-        "| worst relative difference |",
-        "|---|---:|---:|---:|---:|",
+        "| table | numbers | with a paper value | predicted: within tolerance "
+        "| other kinds: within tolerance | worst relative difference |",
+        "|---|---:|---:|---:|---:|---:|",
     ]
     for _, result in results:
         for table in result.tables:
             compared = [e for e in table.entries if e.relative_difference is not None]
             worst = table.worst_relative_difference()
             worst_text = "—" if worst is None else f"{100 * worst:.2f}%"
-            if table.tolerance is None or not compared:
-                within = "—"
-            else:
-                ok = sum(abs(e.relative_difference) <= table.tolerance for e in compared)
-                within = f"{ok}/{len(compared)} ({100 * table.tolerance:g}%)"
+            predicted = [e for e in compared if e.kind == "predicted"]
+            others = [e for e in compared if e.kind != "predicted"]
+            within = _within(predicted, table.tolerance)
+            other = _within(others, table.tolerance, kinds=True)
             lines.append(
                 f"| `{table.id}` | {len(table.entries)} | {len(compared)} | {within} "
-                f"| {worst_text} |"
+                f"| {other} | {worst_text} |"
             )
     return "\n".join(lines)
+
+
+def _within(entries: list[Entry], tolerance: float | None, kinds: bool = False) -> str:
+    if not entries or tolerance is None:
+        return "—" if not entries else f"{len(entries)} (no tolerance)"
+    ok = sum(abs(e.relative_difference) <= tolerance for e in entries)
+    text = f"{ok}/{len(entries)} ({100 * tolerance:g}%)"
+    if kinds:
+        counts = {k: sum(e.kind == k for e in entries) for k in KINDS}
+        text += " " + ", ".join(f"{n} {k}" for k, n in counts.items() if n)
+    return text

@@ -210,18 +210,33 @@ def payload_error_slopes(
     return jax.vmap(one)(jnp.asarray(payloads, dtype=float))
 
 
-def payload_error_table(table_id: str, title: str, payloads, peaks, slopes, unit: str) -> Table:
+def payload_error_table(
+    table_id: str,
+    title: str,
+    payloads,
+    peaks,
+    slopes,
+    unit: str,
+    paper=None,
+    kinds=None,
+    tolerance=None,
+) -> Table:
     """Peaks in the layout of Tables 3-4: a row ``payload{m}`` per nominal payload,
     columns ``case3``, ``case4``, their ``difference`` [unit] and the derivatives
     ``dcase3_ddm``, ``dcase4_ddm`` [unit/kg]; ``peaks`` and ``slopes`` ``(p, 2)``, the
     columns (case 3, case 4) of :func:`payload_error_peaks` and
-    :func:`payload_error_slopes`."""
-    table = Table(table_id, title)
+    :func:`payload_error_slopes`. ``paper``: optional ``{column: (p,) values}`` and
+    ``kinds`` ``{column: kind}`` (see :data:`jaxbal.report.KINDS`)."""
+    paper, kinds = paper or {}, kinds or {}
+    table = Table(table_id, title, tolerance)
     for i, payload in enumerate(payloads):
         row = f"payload{int(payload)}"
-        table.add(row, "case3", peaks[i, 0], unit)
-        table.add(row, "case4", peaks[i, 1], unit)
-        table.add(row, "difference", peaks[i, 1] - peaks[i, 0], unit)
+        values = {
+            "case3": peaks[i, 0], "case4": peaks[i, 1], "difference": peaks[i, 1] - peaks[i, 0]
+        }  # fmt: skip
+        for column, value in values.items():
+            published = paper[column][i] if column in paper else None
+            table.add(row, column, value, unit, published, kinds.get(column))
         table.add(row, "dcase3_ddm", slopes[i, 0], unit + "/kg")
         table.add(row, "dcase4_ddm", slopes[i, 1], unit + "/kg")
     return table
