@@ -11,14 +11,31 @@ from jaxbal._src.report import CSV_COLUMNS, Table, atomic_write_text
 from jaxbal._src.reproduce import discover, run_all
 
 
-def test_table_csv_columns_and_empty_paper():
+def test_table_csv_columns_empty_paper_and_kinds():
     table = Table("demo_table", "demo")
     table.add("P1P13", "case1", 1.5, "N", 1.4)
     table.add("P1P13", "case2", 2.5, "N")
+    table.add("P1P13", "case3", 3.5, "N", 3.0, kind="fitted")
     rows = list(csv.reader(table.to_csv().splitlines()))
     assert tuple(rows[0]) == CSV_COLUMNS
-    assert rows[1] == ["demo_table", "P1P13", "case1", "1.5", "N", "1.4"]
-    assert rows[2][-1] == ""
+    assert rows[1] == ["demo_table", "P1P13", "case1", "1.5", "N", "1.4", "predicted"]
+    assert rows[2][-2:] == ["", ""]  # no paper value: no kind
+    assert rows[3][-1] == "fitted"
+    table.mark("by construction", columns=("case1",))
+    assert [e.kind for e in table.entries] == ["by construction", None, "fitted"]
+    with pytest.raises(ValueError, match="kind must be one of"):
+        table.add("P1P13", "case4", 1.0, "N", 1.0, kind="guessed")
+
+
+def test_summary_counts_predicted_apart_from_other_kinds():
+    from jaxbal._src.report import Experiment, Result, render_summary
+
+    table = Table("demo_table", "demo", 0.01)
+    table.add("a", "x", 1.0, "N", 1.0)  # predicted, within
+    table.add("b", "x", 2.0, "N", 1.0)  # predicted, outside
+    table.add("c", "x", 1.0, "N", 1.0, kind="fitted")
+    line = render_summary([(Experiment("e", "e", None), Result(tables=[table]))]).splitlines()[-1]
+    assert "| 1/2 (1%) | 1/1 (1%) 1 fitted |" in line
 
 
 def test_atomic_write_keeps_old_file_on_failure(tmp_path, monkeypatch):

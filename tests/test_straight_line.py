@@ -47,8 +47,9 @@ def test_wrench_gradients_match_finite_differences(name):
     robot = getattr(jaxbal.robots, name)()
     q, qd, qdd = (x[0] for x in states(robot, 1, seed=3))
 
+    @jax.jit
     def force_norm(q_, qd_, qdd_):
-        force, moment = jax.jit(lambda *s: jaxbal.shaking_wrench(robot, *s))(q_, qd_, qdd_)
+        force, moment = jaxbal.shaking_wrench(robot, q_, qd_, qdd_)
         return jnp.sum(force**2) + jnp.sum(moment**2)
 
     check_grads(force_norm, (q, qd, qdd), order=1, modes=["rev", "fwd"], eps=1e-5, rtol=1e-5)

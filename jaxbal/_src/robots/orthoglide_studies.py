@@ -6,8 +6,7 @@
   fitted to Table 2 (:func:`fit_moment_reference`, quality recomputed end to end);
 * §3.3, Tables 3-4: a payload error Δm (:func:`payload_error_peaks`, and its exact
   derivative :func:`payload_error_slopes`);
-* every payload's plans, e.g. for MuJoCo (:func:`payload_cases`); Fig 4
-  (:func:`case_histories`); the tables in the paper's layout (``*_table``).
+* plans for MuJoCo (:func:`payload_cases`), Fig 4 (:func:`case_histories`), tables.
 
 The motion laws are those of :func:`jaxbal.robots.orthoglide_planning.motion_cases`:
 case 1 quintic and case 2 bang-bang on the straight line of the platform point, case 3
@@ -16,9 +15,8 @@ for a wrong payload. Peaks are taken on :func:`switching_times` (the bang-bang s
 ``T/2`` included), the moment about a reference point ``c``: ``M_c = M_O − c × F``.
 
 References:
-    Geng, J., Arakelian, V., Chablat, D., Lemoine, P. (2021). Balancing of the
-    Orthoglide taking into account its varying payload. Robotics 10(1), 30. Eqs (1),
-    (4)-(7), §3, Tables 1-4, Fig 4.
+    Geng, Arakelian, Chablat, Lemoine (2021). Balancing of the Orthoglide taking into
+    account its varying payload. Robotics 10(1), 30. Eqs (1), (4)-(7), §3, Tables 1-4.
 """
 
 from __future__ import annotations
@@ -211,29 +209,18 @@ def payload_error_slopes(
 
 
 def payload_error_table(
-    table_id: str,
-    title: str,
-    payloads,
-    peaks,
-    slopes,
-    unit: str,
-    paper=None,
-    kinds=None,
-    tolerance=None,
+    table_id: str, title: str, payloads, peaks, slopes, unit: str, paper=None, kinds=None, tol=None
 ) -> Table:
-    """Peaks in the layout of Tables 3-4: a row ``payload{m}`` per nominal payload,
-    columns ``case3``, ``case4``, their ``difference`` [unit] and the derivatives
-    ``dcase3_ddm``, ``dcase4_ddm`` [unit/kg]; ``peaks`` and ``slopes`` ``(p, 2)``, the
-    columns (case 3, case 4) of :func:`payload_error_peaks` and
-    :func:`payload_error_slopes`. ``paper``: optional ``{column: (p,) values}`` and
-    ``kinds`` ``{column: kind}`` (see :data:`jaxbal.report.KINDS`)."""
+    """Tables 3-4: rows ``payload{m}``, columns ``case3``, ``case4``, ``difference``
+    [unit], ``dcase3_ddm``, ``dcase4_ddm`` [unit/kg] from ``peaks``/``slopes`` ``(p, 2)``
+    (:func:`payload_error_peaks`, :func:`payload_error_slopes`); optional ``paper``
+    ``{column: (p,) values}``, ``kinds`` ``{column: kind}``, tolerance ``tol``."""
     paper, kinds = paper or {}, kinds or {}
-    table = Table(table_id, title, tolerance)
+    table = Table(table_id, title, tol)
     for i, payload in enumerate(payloads):
         row = f"payload{int(payload)}"
-        values = {
-            "case3": peaks[i, 0], "case4": peaks[i, 1], "difference": peaks[i, 1] - peaks[i, 0]
-        }  # fmt: skip
+        values = {"case3": peaks[i, 0], "case4": peaks[i, 1]}
+        values["difference"] = peaks[i, 1] - peaks[i, 0]
         for column, value in values.items():
             published = paper[column][i] if column in paper else None
             table.add(row, column, value, unit, published, kinds.get(column))
