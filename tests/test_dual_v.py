@@ -47,16 +47,19 @@ def test_parallelograms_and_workspace_widths():
     np.testing.assert_allclose(wrap(q[7] - q[0]), 0.0, atol=1e-12)
     np.testing.assert_allclose(wrap(q[2] - q[5]), 0.0, atol=1e-12)
     np.testing.assert_allclose(wrap(q[6] - q[1]), 0.0, atol=1e-12)
-    half_x = 0.56 - 0.396
-    _, ok = robot.inverse_kinematics(jnp.array([half_x - 1e-6, 0.0, 0.0]), return_valid=True)
-    assert ok
-    _, ok = robot.inverse_kinematics(jnp.array([half_x + 1e-6, 0.0, 0.0]), return_valid=True)
-    assert not ok
-    assert abs(2 * half_x - 0.328) < 1e-12
-    half_y = float(np.sqrt(0.56**2 - 0.396**2))
-    assert abs(2 * half_y - 0.792) < 1e-3  # paper rounds 2a
-    _, ok = robot.inverse_kinematics(jnp.array([0.0, half_y + 1e-6, 0.0]), return_valid=True)
-    assert not ok
+    # The workspace edges found by bisection on the IK validity mask, against §3's widths.
+    assert abs(2 * _reach(robot, np.array([1.0, 0.0, 0.0])) - 0.328) < 1e-6
+    assert abs(2 * _reach(robot, np.array([0.0, 1.0, 0.0])) - 0.792) < 1e-3  # printed 0.792
+
+
+def _reach(robot, direction, steps=40):
+    """Largest s with the pose s·direction reachable (IK validity mask), by bisection."""
+    inside, outside = 0.0, 1.0
+    for _ in range(steps):
+        middle = 0.5 * (inside + outside)
+        _, ok = robot.inverse_kinematics(jnp.asarray(middle * direction), return_valid=True)
+        inside, outside = (middle, outside) if bool(ok) else (inside, middle)
+    return inside
 
 
 def test_out_of_workspace_raises():
@@ -164,10 +167,30 @@ def test_vmap_equals_loop():
 
 
 def test_ik_gradients_finite_and_correct():
+    """IK: check_grads (finite differences). Wrench: its gradient with respect to the
+    payload and a counter-mass equals central finite differences (1e-6 relative)."""
     robot = dual_v()
     check_grads(lambda u: robot.inverse_kinematics(u), (POSES[2],), order=1, modes=["fwd", "rev"])
     grad = jax.grad(lambda r: _wrench(r, *MOTION)[0][0])(robot)
     assert all(bool(jnp.all(jnp.isfinite(leaf))) for leaf in jax.tree_util.tree_leaves(grad))
+    design = robot.design()
+
+    def force_x(name, value):
+        return float(_wrench(robot.with_design({name: value}), *MOTION)[0][0])
+
+    step = 1e-4
+    numeric = (force_x("payload", 0.1 + step) - force_x("payload", 0.1 - step)) / (2 * step)
+    exact = jax.grad(lambda p: _wrench(robot.with_design({"payload": p}), *MOTION)[0][0])(0.1)
+    np.testing.assert_allclose(exact, numeric, rtol=1e-6)
+    masses = design["counter_mass"]
+    bump = jnp.zeros_like(masses).at[0].set(step)
+    numeric = (force_x("counter_mass", masses + bump) - force_x("counter_mass", masses - bump)) / (
+        2 * step
+    )
+    exact = jax.grad(lambda m: _wrench(robot.with_design({"counter_mass": m}), *MOTION)[0][0])(
+        masses
+    )[0]
+    np.testing.assert_allclose(exact, numeric, rtol=1e-6)
 
 
 @eqx.filter_jit

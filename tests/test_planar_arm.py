@@ -357,9 +357,10 @@ def test_force_balanced_arm_has_zero_shaking_force():
     force, moment = jax.vmap(lambda *s: jaxbal.shaking_wrench(arm, *s))(qs, qds, qdds)
     np.testing.assert_allclose(force, 0.0, atol=1e-11)
     assert float(jnp.max(jnp.abs(moment))) > 1.0
-    grad = jax.grad(lambda d: jnp.sum(force_balanced(arm, d).counter_masses))(
-        jnp.array([0.35, 0.2])
-    )
+    distances = jnp.array([0.35, 0.2])
+    grad = jax.grad(lambda d: jnp.sum(force_balanced(arm, d).counter_masses))(distances)
     assert bool(jnp.all(jnp.isfinite(grad))) and bool(jnp.all(grad < 0))
+    # reference: central finite differences of the closed form (check_grads)
+    check_grads(lambda d: force_balanced(arm, d).counter_masses, (distances,), order=1)
     with pytest.raises(ValueError, match="positive"):
         force_balanced(arm, [0.35, -0.2])

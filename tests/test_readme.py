@@ -6,6 +6,8 @@ import io
 import re
 from pathlib import Path
 
+import pytest
+
 README = Path(__file__).resolve().parent.parent / "README.md"
 
 
@@ -15,3 +17,15 @@ def test_readme_example_runs():
     with contextlib.redirect_stdout(output):
         exec(compile(code, "README.md", "exec"), {})
     assert abs(float(output.getvalue().split()[0]) / 44.3 - 1) < 0.01
+
+
+@pytest.mark.slow
+def test_readme_results_block_equals_a_fresh_reproduction(tmp_path):
+    """The README quotes what `make reproduce` generates: run every experiment into a
+    temporary folder and compare its SUMMARY.md with the README's results block."""
+    from jaxbal._src.reproduce import README_END, README_START, run_all
+
+    run_all(tmp_path)
+    text = README.read_text()
+    block = text[text.index(README_START) + len(README_START) : text.index(README_END)]
+    assert block.strip() == (tmp_path / "SUMMARY.md").read_text().strip()
