@@ -71,3 +71,31 @@ def test_non_finite_state_and_scalar_gravity_are_refused():
         jaxbal.shaking_wrench(robot, jnp.array([jnp.nan, 0.0]), jnp.ones(2), jnp.ones(2))
     with pytest.raises(ValueError, match="gravity must have shape"):
         jaxbal.shaking_wrench(robot, jnp.ones(2), jnp.ones(2), jnp.ones(2), gravity=-9.81)
+
+
+# --- profiles and planning: checked where they are used (eager, jit, tree_at) ---------
+
+
+@pytest.mark.parametrize("duration", [0.0, -0.5, float("nan"), float("inf")])
+def test_straight_line_duration_must_be_positive(duration):
+    line = jaxbal.StraightLine(jnp.zeros(2), jnp.ones(2), jaxbal.profiles.Quintic(), 0.5)
+    with pytest.raises(ValueError, match=r"duration must be finite and > 0 \[s\]"):
+        jaxbal.StraightLine(jnp.zeros(2), jnp.ones(2), jaxbal.profiles.Quintic(), duration)(0.1)
+    changed = eqx.tree_at(lambda x: x.duration, line, jnp.asarray(duration))
+    with pytest.raises(Exception, match="duration must be finite and > 0"):
+        jax.block_until_ready(jax.jit(lambda path: path(0.1))(changed))
+
+
+@pytest.mark.parametrize("switches", [(0.0, 0.0), (0.3, 0.2), (0.2, 0.5), (float("nan"), 0.3)])
+def test_trapezoid_switch_times_must_be_ordered(switches):
+    with pytest.raises(ValueError, match=r"0 < u1 <= u2 < 1/2"):
+        jaxbal.profiles.TrapezoidalAcceleration(*switches)(0.3)
+    good = jaxbal.profiles.TrapezoidalAcceleration(0.1, 0.3)
+    changed = eqx.tree_at(lambda p: (p.u1, p.u2), good, tuple(jnp.asarray(s) for s in switches))
+    with pytest.raises(Exception, match="switch times must satisfy"):
+        jax.block_until_ready(jax.jit(lambda p: p(0.3))(changed))
+
+
+def test_peak_norm_of_nothing_is_an_error():
+    with pytest.raises(ValueError, match=r"t >= 1, got \(0, 3\)"):
+        jaxbal.planning.peak_norm(jnp.zeros((0, 3)))

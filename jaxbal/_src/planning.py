@@ -160,6 +160,8 @@ def peak_norm(vectors: Float[Array, "t 3"]) -> Float[Array, ""]:
     Differentiable everywhere: the norm uses the double-``where`` trick so that an
     instant with ``v = 0`` (rest at the ends of a move) gives a zero, not NaN, gradient.
     """
+    if jnp.ndim(vectors) != 2 or jnp.shape(vectors)[0] == 0:
+        raise ValueError(f"vectors must have shape (t, k) with t >= 1, got {jnp.shape(vectors)}")
     squared = jnp.sum(vectors**2, axis=-1)
     positive = squared > 0.0
     norms = jnp.where(positive, jnp.sqrt(jnp.where(positive, squared, 1.0)), 0.0)

@@ -21,6 +21,7 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from jaxbal._src.types import Array, Float, Scalar, ScalarLike
+from jaxbal._src.validation import guard
 
 
 def _ramp_power(x, power: int):
@@ -91,7 +92,15 @@ class TrapezoidalAcceleration(Profile):
 
     def __call__(self, u):
         u = jnp.asarray(u, dtype=float)
-        return self._shape(u) / self._shape(jnp.asarray(1.0))
+        return self._checked(self._shape(u) / self._shape(jnp.asarray(1.0)))
+
+    def _checked(self, value):
+        """``value``, guarded by ``0 < u1 ≤ u2 < 1/2`` (finite) where the profile is used."""
+        switches = jnp.stack([self.u1, self.u2])
+        ordered = (self.u1 > 0) & (self.u1 <= self.u2) & (self.u2 < 0.5)
+        bad = ~(jnp.all(jnp.isfinite(switches)) & ordered)
+        message = "TrapezoidalAcceleration switch times must satisfy 0 < u1 <= u2 < 1/2"
+        return guard(value, bad, message, switches)
 
     @property
     def peak_acceleration(self) -> Scalar:

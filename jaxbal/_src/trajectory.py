@@ -17,6 +17,7 @@ import jax.numpy as jnp
 
 from jaxbal._src.profiles import Profile
 from jaxbal._src.types import Array, Float, ScalarLike
+from jaxbal._src.validation import guard
 
 
 def time_derivatives(path: Callable, t: ScalarLike, order: int = 2) -> tuple:
@@ -68,5 +69,13 @@ class StraightLine(eqx.Module):
             raise ValueError(f"start {self.start.shape} and end {self.end.shape} differ in shape")
 
     def __call__(self, t: ScalarLike) -> Float[Array, " k"]:
-        u = jnp.asarray(t, dtype=float) / self.duration
+        # Checked where it is used, so a duration changed by eqx.tree_at or an optimiser
+        # is checked too (eagerly a ValueError; under jit a runtime error).
+        duration = guard(
+            self.duration,
+            ~(jnp.isfinite(self.duration) & (self.duration > 0)),
+            "StraightLine duration must be finite and > 0 [s]",
+            self.duration,
+        )
+        u = jnp.asarray(t, dtype=float) / duration
         return self.start + self.profile(u) * (self.end - self.start)
