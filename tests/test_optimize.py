@@ -1,0 +1,39 @@
+"""`jaxbal.minimize`: the convergence flag tells the truth (issue: hostile inputs).
+
+References: a strictly convex quadratic with a known minimiser (closed form), and the
+Rosenbrock function stopped after one step (not converged, gradient far from zero)."""
+
+import jax.numpy as jnp
+import numpy as np
+
+import jaxbal
+
+
+def quadratic(x, matrix, target):
+    d = x - target
+    return 0.5 * d @ matrix @ d
+
+
+def rosenbrock(x):
+    return jnp.sum(100.0 * (x[1:] - x[:-1] ** 2) ** 2 + (1.0 - x[:-1]) ** 2)
+
+
+def test_converged_at_the_known_minimiser():
+    matrix = jnp.array([[3.0, 1.0], [1.0, 2.0]])
+    target = jnp.array([0.3, -1.2])
+    solution = jaxbal.minimize(
+        quadratic, jnp.zeros(2), max_steps=100, gtol=1e-10, args=(matrix, target)
+    )
+    np.testing.assert_allclose(solution.params, target, atol=1e-9)
+    assert bool(solution.converged)
+    assert float(solution.grad_norm) <= 1e-10
+    # the flag agrees with the reported gradient norm and the true gradient
+    true_grad = matrix @ (solution.params - target)
+    assert float(jnp.linalg.norm(true_grad)) <= 1e-10
+
+
+def test_not_converged_when_stopped_early():
+    solution = jaxbal.minimize(rosenbrock, jnp.array([-1.2, 1.0]), max_steps=1, gtol=1e-10)
+    assert not bool(solution.converged)
+    assert int(solution.steps) == 1
+    assert float(solution.grad_norm) > 1e-3
