@@ -3,7 +3,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: install test test-all lint reproduce bench clean
+.PHONY: install test test-all lint reproduce bench fuzz clean
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV) || python3 -m venv $(VENV)
@@ -22,6 +22,9 @@ test: lint
 
 test-all: lint
 	$(BIN)/python -m pytest -n 2 -q
+
+fuzz: $(STAMP)
+	JAXBAL_FUZZ=long $(BIN)/python -m pytest -q tests/test_fuzz.py --hypothesis-show-statistics
 
 reproduce: $(STAMP)
 	$(BIN)/jaxbal reproduce --out results

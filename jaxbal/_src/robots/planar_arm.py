@@ -186,19 +186,22 @@ class PlanarArm(PlanarRobot):
         Raises:
             ValueError: eagerly, when the pose is outside the workspace.
         """
-        pose = jnp.asarray(pose, dtype=float)
+        pose = pose_given = jnp.asarray(pose, dtype=float)
         n = self.n_links
         if n > 3:
             raise ValueError(f"closed-form IK is implemented for n <= 3, got n = {n}")
         check_shape("pose", pose, (2 if n == 2 else 3,))
         (mode,) = self.branch(branch)
+        finite = jnp.all(jnp.isfinite(pose))
+        # A non-finite pose is invalid; solve a finite stand-in so q stays finite.
+        pose = jnp.where(finite, pose, jnp.zeros_like(pose).at[0].set(self.lengths[0]))
         target = pose[:2]
         if n == 3:
             target = target - self.lengths[2] * unit(pose[2])
         q1, q2, valid = two_link_ik(target, self.lengths[0], self.lengths[1], mode)
-        valid = valid & jnp.all(jnp.isfinite(pose))
+        valid = valid & finite
         if not return_valid:
-            raise_if_invalid(valid, "end-effector pose outside the workspace", pose)
+            raise_if_invalid(valid, "end-effector pose outside the workspace", pose_given)
         q = jnp.stack([wrap(q1), q2])
         if n == 3:
             q = jnp.concatenate([q, wrap(pose[2] - q1 - q2)[None]])
