@@ -19,7 +19,7 @@ def test_table_csv_columns_empty_paper_and_kinds():
     rows = list(csv.reader(table.to_csv().splitlines()))
     assert tuple(rows[0]) == CSV_COLUMNS
     assert rows[1] == ["demo_table", "P1P13", "case1", "1.5", "N", "1.4", "predicted"]
-    assert rows[2][-2:] == ["", ""]  # no paper value: no kind
+    assert rows[2][-2:] == ["", "ours only"]  # no paper value: nothing to agree with
     assert rows[3][-1] == "fitted"
     table.mark("by construction", columns=("case1",))
     assert [e.kind for e in table.entries] == ["by construction", None, "fitted"]

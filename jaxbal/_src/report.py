@@ -8,9 +8,10 @@ number). ``kind`` says what agreement with the paper means for that entry
 choice made once, documented, that this table selected), **fitted** (parameters fitted
 to this table), **by construction** (the input was designed to produce it) or
 **alternative reading** (a stated reading of the paper, beside the as-printed one).
-Only predicted entries count as reproduced in the README summary. Files are written
-atomically: to a temporary file
-in the same directory, then renamed, so an interrupted run never leaves a half file.
+Only predicted entries count as reproduced in the README summary; an entry without a
+paper value is of kind ``ours only``. Files are written atomically: to a temporary
+file in the same directory, then renamed, so an interrupted run never leaves a half
+file.
 """
 
 from __future__ import annotations
@@ -26,6 +27,8 @@ from pathlib import Path
 
 CSV_COLUMNS = ("table", "row", "column", "value", "unit", "paper", "kind")
 KINDS = ("predicted", "convention", "fitted", "by construction", "alternative reading")
+#: The kind written for an entry without a published value (nothing to agree with).
+OURS_ONLY = "ours only"
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> Path:
@@ -120,7 +123,7 @@ class Table:
         writer.writerow(CSV_COLUMNS)
         for e in self.entries:
             paper = "" if e.paper is None else repr(float(e.paper))
-            kind = e.kind or ""
+            kind = e.kind or OURS_ONLY
             writer.writerow([self.id, e.row, e.column, repr(float(e.value)), e.unit, paper, kind])
         return buffer.getvalue()
 
@@ -138,7 +141,7 @@ class Table:
             paper = "not given" if e.paper is None else f"{e.paper:.4g}"
             rows.append(
                 f"| {e.row} | {e.column} | {e.value:.4g} | {paper} | {rel_text} | {e.unit} "
-                f"| {e.kind or ''} |"
+                f"| {e.kind or OURS_ONLY} |"
             )
         return "\n".join(rows)
 
