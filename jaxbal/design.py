@@ -11,6 +11,12 @@ from jaxbal._src.design import (
     DesignSolution,
     codesign,
 )
+from jaxbal._src.joint_codesign import (
+    JointSolution,
+    TrapezoidLine,
+    joint_codesign,
+    payload_metrics,
+)
 from jaxbal._src.metrics import (
     METRICS,
     Motion,
@@ -26,12 +32,16 @@ from jaxbal._src.metrics import (
     rms_moment,
     rms_torque,
 )
+from jaxbal._src.pareto import ParetoFront, nondominated, pareto_front
 
 __all__ = [
     "CONSTRAINT_PENALTY",
     "FEASIBILITY_RTOL",
     "METRICS",
+    "JointSolution",
+    "ParetoFront",
     "START_OFFSET",
+    "TrapezoidLine",
     "DesignSolution",
     "Motion",
     "added_inertia",
@@ -39,7 +49,11 @@ __all__ = [
     "as_motion",
     "base_inertia",
     "codesign",
+    "joint_codesign",
     "motion_samples",
+    "nondominated",
+    "pareto_front",
+    "payload_metrics",
     "peak_force",
     "peak_moment",
     "peak_torque",
