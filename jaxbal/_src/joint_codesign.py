@@ -158,11 +158,20 @@ def joint_loss(params, robot: Robot, motion: MotionFactory, joint: _Joint):
     return _combine(objective, constrained, problem)
 
 
-@eqx.filter_jit
 def payload_metrics(robot: Robot, motion: MotionFactory, trajectory, payloads, metrics: tuple):
     """``(n_payloads, len(metrics))`` metric values of ``robot`` moving with
     ``motion(robot, trajectory)`` at every payload [SI] (jit-compiled, cached)."""
-    return _per_payload(robot, motion, trajectory, jnp.asarray(payloads, float), metrics)
+    trajectory = {k: jnp.asarray(v, float) for k, v in trajectory.items()}
+    payloads = jnp.asarray(payloads, float).reshape(-1)
+    return _payload_metrics(robot, motion, trajectory, payloads, tuple(metrics))
+
+
+@eqx.filter_jit
+def _payload_metrics(robot, motion, trajectory, payloads, metrics):
+    return _per_payload(robot, motion, trajectory, payloads, metrics)
+
+
+_loss = eqx.filter_jit(joint_loss)
 
 
 @eqx.filter_jit
@@ -209,6 +218,7 @@ def joint_codesign(
     max_steps: int = 200,
     gtol: float = 1e-10,
     optimizer=None,
+    rounds: int = 5,
 ) -> JointSolution:
     """Design variables and trajectory variables optimised together (module doc).
 
@@ -230,6 +240,8 @@ def joint_codesign(
         scales: optional fixed scale per objective metric name (default: its value at
             the start) — pass the same scales along a Pareto front.
         max_steps, gtol, optimizer: L-BFGS settings (:func:`jaxbal.minimize`).
+        rounds: solves with a shifted penalty bound (same compilation), so that the
+            constraints hold at the worst payload up to the solver's accuracy.
     """
     if robust not in ("mean", "max"):
         raise ValueError(f"robust must be 'mean' or 'max', got {robust!r}")
@@ -268,13 +280,26 @@ def joint_codesign(
     x0 = {name: robot.design()[name] for name in free}
     params0 = {"design": _to_params(x0, problem), "trajectory": _to_params(theta0, theta_problem)}
     with runtime_checks(False):
-        initial_value = joint_loss(params0, robot, motion, joint)
-        solution = minimize(
-            joint_loss, params0, optimizer, max_steps, gtol, args=(robot, motion, joint)
-        )
-    # A line search never ends above its start; keep the start if it did (non-smooth peaks).
-    better = solution.value <= initial_value
-    params = jax.tree.map(lambda a, b: jnp.where(better, a, b), solution.params, params0)
+        initial_value = _loss(params0, robot, motion, joint)
+        params, shift = params0, jnp.zeros_like(bounds)
+        for _ in range(rounds if constrained else 1):
+            # Shifted quadratic penalty (Powell-Hestenes-Rockafellar): move the bound
+            # seen by the penalty by the violation left, so the true bound is met.
+            shifted = eqx.tree_at(lambda j: j.design.bounds, joint, bounds - shift)
+            solution = minimize(
+                joint_loss, params, optimizer, max_steps, gtol, args=(robot, motion, shifted)
+            )
+            params = solution.params
+            if not constrained:
+                break
+            candidate = robot.with_design(_to_design(params["design"], problem))
+            theta = _to_design(params["trajectory"], theta_problem)
+            worst = jnp.max(payload_metrics(candidate, motion, theta, payloads, everything), 0)
+            shift = jnp.maximum(shift + (worst[where] - bounds), 0.0)
+        final_value = _loss(params, robot, motion, joint)
+    # Keep the start if the optimiser ended above it (non-smooth peaks).
+    better = final_value <= initial_value
+    params = jax.tree.map(lambda a, b: jnp.where(better, a, b), params, params0)
     optimised = robot.with_design(_to_design(params["design"], problem))
     theta = _to_design(params["trajectory"], theta_problem)
     after = payload_metrics(optimised, motion, theta, payloads, everything)
@@ -292,7 +317,7 @@ def joint_codesign(
         design=optimised.design(),
         trajectory=theta,
         robot=optimised,
-        value=jnp.minimum(solution.value, initial_value),
+        value=jnp.minimum(final_value, initial_value),
         initial_value=initial_value,
         metrics={name: (agg_before[i], agg_after[i]) for i, name in enumerate(names)},
         constraints={metric_name(m): (worst[k], bounds[k]) for k, m in enumerate(constrained)},

@@ -1,0 +1,122 @@
+"""Joint counter-mass + trajectory co-design and Pareto fronts on a small instance (2R).
+
+References: optimality by the gradient of the loss (KKT residual of the bounded problem
+in its smooth parametrisation), constraints by their values, the front by dominance and
+by independent single-objective solves.
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxbal
+from jaxbal.design import (
+    TrapezoidLine,
+    joint_codesign,
+    nondominated,
+    pareto_front,
+    payload_metrics,
+)
+
+THETA = {"u2": 0.25, "ratio": 0.5}
+LOWER = {"u2": 0.05, "ratio": 0.05}
+UPPER = {"u2": 0.45, "ratio": 1.0}
+PAYLOADS = jnp.array([0.0, 2.5, 5.0])
+DESIGN_UPPER = {"counter_distance": 0.3}
+
+
+@pytest.fixture(scope="module")
+def problem():
+    arm = jaxbal.robots.planar_2r()
+    move = TrapezoidLine(
+        jnp.array([0.225, 0.25]), jnp.array([0.225, 0.70]), jaxbal.sample_times(0.5, 16)
+    )
+    return arm, move
+
+
+def _solve(arm, move, objective, **options):
+    options = {"payloads": PAYLOADS, "upper": DESIGN_UPPER, "max_steps": 150, **options}
+    return joint_codesign(
+        arm, move, THETA, objective, trajectory_lower=LOWER, trajectory_upper=UPPER, **options
+    )
+
+
+def test_joint_optimum_is_stationary_and_feasible(problem):
+    arm, move = problem
+    budget = 3.0
+    solution = _solve(arm, move, "rms_force", constraints={"added_mass": budget}, gtol=1e-9)
+    # KKT residual in the bound parametrisation (reference: gtol of the solver)
+    assert float(solution.grad_norm) < 1e-6
+    value, bound = solution.constraints["added_mass"]
+    assert float(value) <= float(bound) * (1 + 1e-6)
+    assert bool(solution.feasible)
+    before, after = solution.metrics["rms_force"]
+    assert float(after) < float(before)
+    # trajectory inside its bounds
+    for name, x in solution.trajectory.items():
+        assert LOWER[name] <= float(x) <= UPPER[name]
+
+
+def test_joint_no_worse_than_sequential(problem):
+    arm, move = problem
+    box = ({k: v - 1e-9 for k, v in THETA.items()}, {k: v + 1e-9 for k, v in THETA.items()})
+    options = {"payloads": PAYLOADS, "upper": DESIGN_UPPER, "max_steps": 80, "robust": "max"}
+    options["constraints"] = {"added_mass": 3.0}
+    objective = {"peak_force": 1.0, "added_mass": 0.0}
+    sequential = joint_codesign(
+        arm, move, THETA, objective, trajectory_lower=box[0], trajectory_upper=box[1], **options
+    )
+    joint = joint_codesign(
+        sequential.robot, move, THETA, objective, trajectory_lower=LOWER,
+        trajectory_upper=UPPER, **options,
+    )  # fmt: skip
+    metrics = ("peak_force",)
+    worst = [
+        float(payload_metrics(s.robot, move, s.trajectory, PAYLOADS, metrics).max())
+        for s in (sequential, joint)
+    ]
+    assert worst[1] <= worst[0] * (1 + 1e-9)
+    assert float(joint.constraints["added_mass"][0]) <= 3.0 * (1 + 1e-6)
+
+
+def test_smooth_max_bounds_the_worst_payload(problem):
+    arm, move = problem
+    sharpness = 200.0
+    solution = _solve(arm, move, "rms_force", robust="max", sharpness=sharpness, max_steps=1)
+    values = payload_metrics(solution.robot, move, solution.trajectory, PAYLOADS, ("rms_force",))
+    smooth = float(solution.metrics["rms_force"][1])
+    scale = float(solution.metrics["rms_force"][0])
+    # reference: max v <= smax v <= max v + s log(n) / k
+    assert float(values.max()) <= smooth + 1e-9
+    assert smooth <= float(values.max()) + scale * np.log(len(PAYLOADS)) / sharpness + 1e-9
+
+
+def test_payload_metrics_vmaps_the_payload(problem):
+    arm, move = problem
+    values = payload_metrics(arm, move, THETA, PAYLOADS, ("rms_force",))
+    one = payload_metrics(arm.with_design({"payload": PAYLOADS[1]}), move, THETA,
+                          PAYLOADS[1:2], ("rms_force",))  # fmt: skip
+    np.testing.assert_allclose(values[1], one[0], rtol=1e-12)  # reference: same computation
+
+
+def test_nondominated_known_set():
+    values = np.array([[1.0, 3.0], [2.0, 2.0], [3.0, 1.0], [2.5, 2.5], [1.0, 3.0]])
+    np.testing.assert_array_equal(nondominated(values), [True, True, True, False, True])
+
+
+@pytest.mark.slow
+def test_front_end_points_and_dominance(problem):
+    arm, move = problem
+    options = {"payloads": PAYLOADS, "upper": DESIGN_UPPER, "max_steps": 150, "gtol": 1e-9}
+    options.update(trajectory_lower=LOWER, trajectory_upper=UPPER)
+    metrics = ("rms_force", "added_mass")
+    front = pareto_front(arm, move, THETA, metrics, [0.0, 0.3, 1.0], **options)
+    assert bool(front.efficient.all())
+    assert bool(front.feasible.all())
+    single = joint_codesign(arm, move, THETA, "rms_force", **options)
+    # reference: an independent single-objective solve (end point w = 0)
+    np.testing.assert_allclose(front.values[0, 0], single.metrics["rms_force"][1], rtol=1e-4)
+    # w = 1: the added mass alone is minimised -> zero counter-mass
+    assert float(front.values[-1, 1]) < 1e-6
+    assert jax.numpy.all(jnp.diff(front.values[:, 1]) <= 1e-9)
