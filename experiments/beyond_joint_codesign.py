@@ -127,7 +127,7 @@ def run(ctx) -> Result:
 def _plot(ctx, fronts):
     fig, axes = plt.subplots(1, len(fronts), figsize=(4 * len(fronts), 3.5))
     for axis, (name, (front, designs)) in zip(axes, fronts.items(), strict=True):
-        values = np.asarray(front.values)
+        values = np.asarray(front.values)[np.asarray(front.efficient)]  # dominated: dropped
         axis.plot(values[:, 1], values[:, 0], "o-", color="k", ms=3, label="joint front")
         for (design, v), marker in zip(designs.items(), ("r*", "bs", "g^"), strict=True):
             axis.plot([v[0, 1]], [v[:, 0].max()], marker, ms=8, label=design)
