@@ -117,6 +117,7 @@ def test_front_end_points_and_dominance(problem):
     single = joint_codesign(arm, move, THETA, "rms_force", **options)
     # reference: an independent single-objective solve (end point w = 0)
     np.testing.assert_allclose(front.values[0, 0], single.metrics["rms_force"][1], rtol=1e-4)
-    # w = 1: the added mass alone is minimised -> zero counter-mass
-    assert float(front.values[-1, 1]) < 1e-6
+    # w = 1: the added mass alone is minimised -> zero counter-mass (reference: 0, within
+    # the 0.1 g that the r² bound parametrisation approaches it by, START_OFFSET)
+    assert float(front.values[-1, 1]) < 1e-4
     assert jax.numpy.all(jnp.diff(front.values[:, 1]) <= 1e-9)

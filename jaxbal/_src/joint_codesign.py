@@ -268,7 +268,7 @@ def joint_codesign(
     nominal = jnp.maximum(jnp.abs(jnp.mean(before, axis=0)), floors)
     given = dict(scales or {})
     term_scales = jnp.stack(
-        [jnp.asarray(given.get(metric_name(m), nominal[i]), float) for i, m in enumerate(terms)]
+        [jnp.maximum(given.get(metric_name(m), nominal[i]), floors[i]) for i, m in enumerate(terms)]
     )
     where = jnp.asarray([everything.index(m) for m in constrained], int)
     problem = _Problem(
