@@ -1,0 +1,211 @@
+"""``jaxbal.sweep``: a metric over the Cartesian product of named axes, labelled, chunked,
+sharded over the devices, resumable, and on a Ray cluster.
+
+The sweep is cut into blocks of points (:class:`~jaxbal._src.sweep_axes.Layout`) sized
+from a memory budget; every block is one call of one compiled program
+(:func:`~jaxbal._src.sweep_program.run_chunk`: ``vmap`` of the metric, split over the
+local devices with ``shard_map``), padded to the same number of points so that nothing
+recompiles. Finished blocks stream to a zarr store (:mod:`jaxbal._src.sweep_store`), so
+an interrupted sweep resumes where it stopped and ends with the same store.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+import numpy as np
+
+from jaxbal._src.sweep_axes import Axis, Layout, grid
+from jaxbal._src.sweep_program import (
+    build,
+    chunk_memory,
+    device_mesh,
+    output_shapes,
+)
+from jaxbal._src.sweep_run import run_backend
+from jaxbal._src.sweep_store import SweepStore, fingerprint, open_dataset, remove_partial_files
+
+__all__ = ["DEFAULT_MEMORY_BUDGET", "METRIC_UNITS", "Chunks", "plan_parameters", "prepare", "sweep"]
+
+#: bytes one device may use for a block's temporaries, inputs and outputs (default).
+DEFAULT_MEMORY_BUDGET = 512 * 2**20
+#: units of the named metrics of :data:`jaxbal.design.METRICS`.
+METRIC_UNITS = {
+    "peak_force": "N",
+    "rms_force": "N",
+    "peak_moment": "N·m",
+    "rms_moment": "N·m",
+    "peak_torque": "N·m or N",
+    "rms_torque": "N·m or N",
+    "added_mass": "kg",
+    "added_inertia": "kg·m²",
+}
+#: largest block [points] (keeps the progress bar and the store's chunks moving).
+MAX_CHUNK = 2**18
+
+
+def _axes(axes: Mapping) -> dict[str, Axis]:
+    if not axes:
+        raise ValueError("a sweep needs at least one axis")
+    named, seen = {}, set()
+    for dim, axis in axes.items():
+        if not isinstance(dim, str) or not dim.isidentifier():
+            raise ValueError(f"axis names must be identifiers, got {dim!r}")
+        axis = (axis if isinstance(axis, Axis) else grid(axis)).named(dim)
+        clash = seen & set(axis.values)
+        if clash or (dim in seen):
+            raise ValueError(f"parameter(s) {sorted(clash or {dim})} set by two axes")
+        seen |= set(axis.values)
+        named[dim] = axis
+    return named
+
+
+def plan_parameters(axes: dict[str, Axis], robot, motion) -> tuple:
+    """How each parameter reaches the point: ``(name, "set" | "design" | "trajectory",
+    setter)``, in the order of the axes."""
+    design = robot.design() if hasattr(robot, "design") else {}
+    plan = []
+    for axis in axes.values():
+        for name in axis.values:
+            setter = axis.setters.get(name)
+            if setter is not None:
+                plan.append((name, "set", setter))
+            elif name in design:
+                plan.append((name, "design", None))
+            elif callable(motion):
+                plan.append((name, "trajectory", None))
+            else:
+                raise ValueError(
+                    f"unknown sweep parameter {name!r}: not a design variable of "
+                    f"{type(robot).__name__} ({sorted(design)}), no setter, and the motion "
+                    "is not a factory motion(robot, θ)"
+                )
+    return tuple(plan)
+
+
+class Chunks:
+    """The blocks of a sweep as padded parameter batches.
+
+    Attributes:
+        axes, layout: the sweep's axes and blocks.
+        batch: points per call (a block padded to a multiple of the device count).
+    """
+
+    def __init__(self, axes: dict[str, Axis], layout: Layout, devices: int):
+        self.axes, self.layout = axes, layout
+        self.batch = math.ceil(layout.points / devices) * devices
+
+    def params(self, k: int) -> tuple[dict, int]:
+        """``({parameter: (batch, …)}, m)``: block ``k``'s ``m`` points, the last one
+        repeated up to :attr:`batch`."""
+        indices = self.layout.indices(k)
+        m = len(indices[0])
+        params = {}
+        for index, axis in zip(indices, self.axes.values(), strict=True):
+            padded = np.concatenate([index, np.full(self.batch - m, index[-1])])
+            for name, values in axis.values.items():
+                params[name] = values[padded]
+        return params, m
+
+    def unpad(self, k: int, outputs: dict, m: int) -> dict:
+        """Block ``k``'s outputs ``{name: (*extents, …)}`` from a batch's."""
+        extents = tuple(r.stop - r.start for r in self.layout.region(k))
+        return {n: np.asarray(v)[:m].reshape(extents + v.shape[1:]) for n, v in outputs.items()}
+
+
+def _chunk_points(program, dynamic, params, budget, total, devices) -> int:
+    per_point, fixed = chunk_memory(program, dynamic, params)
+    per_device = max((budget - fixed) // per_point, 1)
+    return int(min(per_device * devices, total, MAX_CHUNK))
+
+
+def prepare(metric, robot, motion, axes, *, trajectory=None, devices=None, mesh=True):
+    """``(axes, program, dynamic, outputs)`` of a sweep (see :func:`sweep`)."""
+    from jaxbal._src.metrics import resolve_metric
+
+    axes = _axes(axes)
+    function = resolve_metric(metric) if isinstance(metric, str) else metric
+    plan = plan_parameters(axes, robot, motion)
+    theta = {k: np.asarray(v, dtype=float) for k, v in (trajectory or {}).items()}
+    device_list = None if devices is None else list(devices)
+    program, dynamic = build(
+        function, robot, motion, theta, plan, device_mesh(device_list) if mesh else None
+    )
+    first = {n: v[:1] for a in axes.values() for n, v in a.values.items()}
+    outputs = output_shapes(program, dynamic, first)
+    return axes, program, dynamic, outputs
+
+
+def _metadata(metric, robot, axes, outputs, units, output_dims, attrs) -> dict:
+    if isinstance(units, str):
+        if len(outputs) != 1:
+            raise ValueError(f"units as one string needs one output, got {sorted(outputs)}")
+        units = {next(iter(outputs)): units}
+    name = metric if isinstance(metric, str) else getattr(metric, "__name__", repr(metric))
+    unknown = set(units or {}) - set(outputs)
+    if unknown:
+        raise ValueError(f"units for unknown outputs {sorted(unknown)}; outputs {sorted(outputs)}")
+    if isinstance(metric, str) and not units:
+        units = {n: METRIC_UNITS.get(metric, "") for n in outputs}
+    base = {"metric": name, "robot": type(robot).__name__}
+    extra = {"block_outputs": {k: str(v.dtype) for k, v in outputs.items()}, **base}
+    return {
+        "units": dict(units or {}),
+        "output_dims": dict(output_dims or {}),
+        "attrs": {**base, **(attrs or {})},
+        "fingerprint": fingerprint(axes, outputs, extra),
+    }
+
+
+def sweep(
+    metric: Callable | str,
+    robot,
+    motion,
+    axes: Mapping,
+    *,
+    trajectory: Mapping | None = None,
+    units: str | Mapping | None = None,
+    output_dims: Mapping | None = None,
+    store: str | Path | None = None,
+    resume: bool = False,
+    memory_budget: int = DEFAULT_MEMORY_BUDGET,
+    chunk_size: int | None = None,
+    devices=None,
+    backend="local",
+    progress: bool = True,
+    attrs: Mapping | None = None,
+):
+    """Evaluate ``metric(robot, motion)`` on the Cartesian product of ``axes``.
+
+    See :mod:`jaxbal.sweep` for the full description; returns an
+    :class:`xarray.Dataset` with one variable per output of the metric, dimensions the
+    axes then the output's own, coordinates the axes' values, ``units`` attributes.
+    """
+    axes, program, dynamic, outputs = prepare(
+        metric, robot, motion, axes, trajectory=trajectory, devices=devices
+    )
+    meta = _metadata(metric, robot, axes, outputs, units, output_dims, attrs)
+    count = program.mesh.size
+    sizes = tuple(a.size for a in axes.values())
+    path = None if store is None else Path(store)
+    if path is not None and path.exists():
+        if not resume:
+            raise FileExistsError(f"{path} exists: pass resume=True to continue it, or remove it")
+        remove_partial_files(path)
+        opened = SweepStore.open(path)
+        if opened.description["fingerprint"] != meta["fingerprint"]:
+            raise ValueError(f"{path} holds a different sweep (axes, values or outputs differ)")
+    else:
+        if chunk_size is None:
+            first, _ = Chunks(axes, Layout.for_chunk(sizes, 1), 1).params(0)
+            chunk_size = _chunk_points(
+                program, dynamic, first, memory_budget, math.prod(sizes), count
+            )
+        layout = Layout.for_chunk(sizes, chunk_size)
+        opened = SweepStore.create(path, axes, layout, outputs, meta)
+    chunks = Chunks(axes, opened.layout, count)
+    pending = [k for k, done in enumerate(opened.done()) if not done]
+    run_backend(backend, program, dynamic, chunks, pending, opened, progress)
+    return open_dataset(opened.group)

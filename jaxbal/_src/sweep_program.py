@@ -1,0 +1,165 @@
+"""The compiled program of a sweep: one point, ``vmap`` over a chunk, ``shard_map`` over
+the devices.
+
+A :class:`Program` is hashable (the metric, how each parameter reaches the robot or the
+motion, the static part of the robot/motion pytrees, the device mesh); the arrays of the
+robot, the motion and the fixed trajectory variables travel as ``dynamic`` arguments.
+:func:`run_chunk` is one module-level ``jit`` with the program static, so a sweep
+compiles once per program and chunk shape, whatever its values.
+
+Each device evaluates ``vmap(point)`` on its slice of the chunk, so a point's value does
+not depend on how the chunk was cut between devices.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, NamedSharding, PartitionSpec
+
+__all__ = ["AXIS", "Program", "build", "chunk_memory", "device_mesh", "output_shapes", "run_chunk"]
+
+#: name of the mesh axis the chunk is split along.
+AXIS = "points"
+
+
+def device_mesh(devices=None) -> Mesh:
+    """A one-dimensional mesh over ``devices`` (default: all local devices)."""
+    devices = jax.local_devices() if devices is None else list(devices)
+    return Mesh(np.array(devices), (AXIS,))
+
+
+def _split(tree) -> tuple[list, tuple]:
+    """Array leaves (dynamic) and the hashable rest ``(treedef, static leaves)``."""
+    leaves, treedef = jax.tree.flatten(tree)
+    is_array = [isinstance(x, jax.Array | np.ndarray) for x in leaves]
+    dynamic = [jnp.asarray(x) for x, a in zip(leaves, is_array, strict=True) if a]
+    static = tuple(None if a else x for x, a in zip(leaves, is_array, strict=True))
+    return dynamic, (treedef, static)
+
+
+def _join(dynamic, static):
+    treedef, leaves = static
+    values = iter(dynamic)
+    return jax.tree.unflatten(treedef, [next(values) if x is None else x for x in leaves])
+
+
+@dataclass(frozen=True)
+class Program:
+    """What a sweep evaluates at one point (hashable: the static argument of the jit).
+
+    Attributes:
+        metric: ``(robot, motion) -> array | dict | NamedTuple``.
+        plan: per parameter ``(name, how, setter)``; ``how`` is ``"design"``
+            (``robot.with_design``), ``"set"`` (``setter(robot, value)``) or
+            ``"trajectory"`` (an entry of ``θ`` given to the motion factory).
+        factory: whether the motion is a factory ``motion(robot, θ)``.
+        static: static part of ``(robot, motion, θ)``.
+        mesh: the devices a chunk is split over (``None``: the default device, no split).
+    """
+
+    metric: Callable
+    plan: tuple
+    factory: bool
+    static: tuple
+    mesh: Mesh | None = None
+
+    def point(self, dynamic, params: dict):
+        """The metric at one point as a dict of arrays (``params``: name ↦ value)."""
+        robot, motion, theta = _join(dynamic, self.static)
+        theta = dict(theta)
+        for name, how, setter in self.plan:
+            value = params[name]
+            if how == "set":
+                robot = setter(robot, value)
+            elif how == "design":
+                leaf = robot.design()[name]
+                robot = robot.with_design({name: jnp.broadcast_to(value, jnp.shape(leaf))})
+            else:
+                theta[name] = value
+        if self.factory:
+            motion = motion(robot, theta)
+        return as_outputs(self.metric(robot, motion))
+
+    def batch(self, dynamic, params: dict):
+        """:meth:`point` mapped over the leading axis of every parameter."""
+        return jax.vmap(self.point, in_axes=(None, 0))(dynamic, params)
+
+
+def as_outputs(value) -> dict:
+    """A metric's value as ``{name: array}``: a dict as it is, a NamedTuple by field,
+    a tuple/list as ``value_0, value_1, …``, an array as ``value``."""
+    if isinstance(value, dict):
+        return {str(k): jnp.asarray(v) for k, v in value.items()}
+    if hasattr(value, "_asdict"):
+        return {k: jnp.asarray(v) for k, v in value._asdict().items()}
+    if isinstance(value, tuple | list):
+        return {f"value_{i}": jnp.asarray(v) for i, v in enumerate(value)}
+    return {"value": jnp.asarray(value)}
+
+
+def build(metric, robot, motion, theta, plan, mesh=None) -> tuple[Program, list]:
+    """The :class:`Program` and its dynamic arguments."""
+    dynamic, static = _split((robot, motion, dict(theta)))
+    program = Program(metric, tuple(plan), callable(motion), static, mesh)
+    return program, dynamic
+
+
+def _local(program: Program, dynamic, params):
+    return program.batch(dynamic, params)
+
+
+@partial(jax.jit, static_argnums=0)
+def run_chunk(program: Program, dynamic, params: dict) -> dict:
+    """``{output: (B, …)}`` at the ``B`` points of ``params`` (``{name: (B, …)}``),
+    ``B`` a multiple of the mesh size; every device evaluates its slice."""
+    if program.mesh is None:
+        return program.batch(dynamic, params)
+    spec = PartitionSpec(AXIS)
+    mapped = jax.shard_map(
+        partial(_local, program),
+        mesh=program.mesh,
+        in_specs=(PartitionSpec(), spec),
+        out_specs=spec,
+        check_vma=False,  # the straight-line replay binds primitives itself
+    )
+    return mapped(dynamic, params)
+
+
+@partial(jax.jit, static_argnums=0)
+def _single(program: Program, dynamic, params: dict) -> dict:
+    return program.batch(dynamic, params)
+
+
+def put(program: Program, params: dict) -> dict:
+    """The chunk's parameters placed on the mesh, split along the points."""
+    if program.mesh is None:
+        return {k: jnp.asarray(v) for k, v in params.items()}
+    sharding = NamedSharding(program.mesh, PartitionSpec(AXIS))
+    return {k: jax.device_put(np.asarray(v), sharding) for k, v in params.items()}
+
+
+def output_shapes(program: Program, dynamic, params: dict) -> dict:
+    """``{output: ShapeDtypeStruct}`` of one point (nothing is computed)."""
+    one = {k: v[0] for k, v in params.items()}
+    return jax.eval_shape(program.point, dynamic, one)
+
+
+def chunk_memory(program: Program, dynamic, params: dict, probe: int = 64) -> tuple[int, int]:
+    """``(bytes per point, fixed bytes)`` of one device evaluating a chunk, from XLA's
+    memory analysis of the batch at ``probe`` and ``2·probe`` points (temporaries and
+    outputs; the robot and motion are shared by all points)."""
+    sizes = []
+    for batch in (probe, 2 * probe):
+        stacked = {k: np.repeat(np.asarray(v)[:1], batch, axis=0) for k, v in params.items()}
+        compiled = _single.lower(program, dynamic, stacked).compile()
+        stats = compiled.memory_analysis()
+        inputs = sum(v.nbytes for v in stacked.values())
+        sizes.append(stats.temp_size_in_bytes + stats.output_size_in_bytes + inputs)
+    per_point = max((sizes[1] - sizes[0]) / probe, sizes[1] / (2 * probe) / 4, 1.0)
+    return int(np.ceil(per_point)), max(int(sizes[0] - per_point * probe), 0)

@@ -1,0 +1,122 @@
+"""The Ray backend of :func:`jaxbal.sweep`: blocks as Ray tasks, written by the driver.
+
+The driver puts the program (metric, robot, motion; without its device mesh) in Ray's
+object store once, then submits one task per pending block with the block's parameters
+and writes each result to the zarr store as it arrives, so the store is the same
+whichever worker computed a block and in whatever order. A worker that dies (killed,
+out of memory, node lost) fails its task with a system error, which Ray retries up to
+``max_retries`` times on another worker; an exception raised by the metric itself is
+not retried and stops the sweep (the blocks written so far stay done).
+
+Each worker compiles the program once (it keeps it by the sweep's token) and splits a
+block over its own local devices.
+
+Requires the ``cluster`` extra (``pip install "jaxbal[cluster]"``).
+
+References:
+    Moritz et al. (2018), Ray: a distributed framework for emerging AI applications,
+    OSDI; https://docs.ray.io/en/latest/ray-core/fault_tolerance/tasks.html (retries).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import uuid
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["RayBackend", "evaluate_ray"]
+
+#: programs a worker has compiled, by sweep token (so a block never recompiles).
+_PROGRAMS: dict[str, tuple] = {}
+
+
+@dataclass(frozen=True)
+class RayBackend:
+    """Where and how :func:`jaxbal.sweep` sends its blocks as Ray tasks.
+
+    Attributes:
+        address: the cluster (``"auto"``, ``"ray://head:10001"``, …); ``None``: the
+            cluster this process is connected to, or a new local one.
+        max_retries: retries of a block whose worker died.
+        num_cpus, num_gpus: resources of one task (``num_gpus=0.5``: two workers per
+            GPU; then start the workers with ``XLA_PYTHON_CLIENT_PREALLOCATE=false``).
+        max_in_flight: blocks submitted ahead of the results (default: twice the
+            cluster's CPUs).
+        init: more keyword arguments of ``ray.init`` (e.g. ``num_cpus`` locally).
+    """
+
+    address: str | None = None
+    max_retries: int = 3
+    num_cpus: float = 1.0
+    num_gpus: float = 0.0
+    max_in_flight: int | None = None
+    init: dict = field(default_factory=dict)
+
+
+def _connect(backend: RayBackend):
+    try:
+        import ray
+    except ImportError:  # pragma: no cover - depends on the installed extras
+        raise ImportError('the Ray backend needs Ray: pip install "jaxbal[cluster]"') from None
+    if not ray.is_initialized():
+        ray.init(address=backend.address, **backend.init)
+    return ray
+
+
+def _worker_program(token: str, payload):
+    """The program with this worker's device mesh, compiled once per worker."""
+    if token not in _PROGRAMS:
+        from jaxbal._src.sweep_program import device_mesh
+
+        program, dynamic = payload
+        mesh = device_mesh()
+        _PROGRAMS.clear()  # one sweep at a time per worker
+        _PROGRAMS[token] = (dataclasses.replace(program, mesh=mesh), dynamic)
+    return _PROGRAMS[token]
+
+
+def evaluate_block(token: str, payload, params: dict) -> dict:
+    """One block on this process's devices: ``{output: (B, …)}`` as NumPy arrays."""
+    from jaxbal._src.sweep_program import put, run_chunk
+
+    program, dynamic = _worker_program(token, payload)
+    batch = len(next(iter(params.values())))
+    padded = math.ceil(batch / program.mesh.size) * program.mesh.size
+    if padded != batch:
+        params = {k: np.concatenate([v, np.repeat(v[-1:], padded - batch, 0)]) for k, v in
+                  params.items()}  # fmt: skip
+    result = run_chunk(program, dynamic, put(program, params))
+    return {k: np.asarray(v)[:batch] for k, v in result.items()}
+
+
+def evaluate_ray(backend: RayBackend, program, dynamic, chunks, pending, write, advance) -> None:
+    """Evaluate the ``pending`` blocks as Ray tasks; ``write(k, outputs)`` each result."""
+    ray = _connect(backend)
+    remote = ray.remote(evaluate_block).options(
+        max_retries=backend.max_retries,
+        retry_exceptions=False,
+        num_cpus=backend.num_cpus,
+        num_gpus=backend.num_gpus,
+    )
+    token = uuid.uuid4().hex
+    host = [np.asarray(x) for x in dynamic]
+    payload = ray.put((dataclasses.replace(program, mesh=None), host))
+    limit = backend.max_in_flight or max(2 * int(ray.cluster_resources().get("CPU", 1)), 1)
+    queue, running = list(pending), {}
+    try:
+        while queue or running:
+            while queue and len(running) < limit:
+                k = queue.pop(0)
+                params, m = chunks.params(k)
+                running[remote.remote(token, payload, params)] = (k, m)
+            ready, _ = ray.wait(list(running), num_returns=1)
+            for ref in ready:
+                k, m = running.pop(ref)
+                write(k, chunks.unpad(k, ray.get(ref), m))
+                advance(m)
+    finally:
+        for ref in running:
+            ray.cancel(ref, force=True)

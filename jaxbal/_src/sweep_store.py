@@ -1,0 +1,191 @@
+"""The zarr store of a sweep: labelled arrays written block by block, and which blocks
+are done.
+
+Layout (zarr format 3, readable by ``xarray.open_zarr(path, consolidated=False)``):
+
+* one array per axis, the axis's index coordinate (``units``, ``kind`` attributes), and
+  one per parameter that is not the coordinate itself (e.g. the points of a Sobol'
+  sample), ``(n, *shape)``;
+* one array per output of the metric, ``(*axis sizes, *output shape)``, chunked like
+  the sweep's blocks: a finished block is one chunk of each output, written whole (zarr
+  writes every chunk to a temporary file and renames it);
+* the group ``_jaxbal`` with ``done``, one byte per block, set after the block's
+  outputs are written: a block is done when its byte is, so a run killed at any moment
+  leaves a store whose done blocks are complete; ``resume=True`` recomputes the others.
+
+The group attribute ``jaxbal_sweep`` records the axes, the block shape and a fingerprint
+of every value the sweep depends on; a resumed sweep must match it.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import numpy as np
+
+from jaxbal._src.sweep_axes import Axis, Layout
+
+__all__ = ["SweepStore", "fingerprint", "open_dataset"]
+
+_MANIFEST = "_jaxbal"
+_FORMAT = 1
+
+
+def fingerprint(axes: dict[str, Axis], outputs: dict, extra: dict) -> str:
+    """SHA-256 of the axes' names and values, the outputs' shapes and ``extra``."""
+    digest = hashlib.sha256()
+    for dim, axis in axes.items():
+        digest.update(dim.encode())
+        for name, values in axis.values.items():
+            digest.update(name.encode())
+            digest.update(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    digest.update(json.dumps({k: list(v.shape) for k, v in outputs.items()}).encode())
+    digest.update(json.dumps(extra, sort_keys=True, default=str).encode())
+    return digest.hexdigest()
+
+
+def _output_dims(name: str, shape: tuple, given) -> list[str]:
+    if given is not None:
+        given = [given] if isinstance(given, str) else list(given)
+        if len(given) != len(shape):
+            raise ValueError(f"output {name!r} has shape {shape}; got dims {given}")
+        return given
+    return [f"{name}_dim{i}" for i in range(len(shape))]
+
+
+class SweepStore:
+    """A sweep's zarr group (local path, or in memory when ``path`` is ``None``)."""
+
+    def __init__(self, group, layout: Layout):
+        self.group = group
+        self.layout = layout
+        self.done_array = group[_MANIFEST]["done"]
+
+    @classmethod
+    def create(cls, path, axes: dict[str, Axis], layout: Layout, outputs: dict, meta: dict):
+        """A new store (``outputs``: name ↦ ShapeDtypeStruct of one point; ``meta``:
+        ``units``, ``output_dims``, ``attrs``, ``fingerprint``)."""
+        import zarr
+
+        store = zarr.storage.MemoryStore() if path is None else str(path)
+        group = zarr.open_group(store, mode="w", zarr_format=3)
+        dims = list(axes)
+        coordinates = []
+        for dim, axis in axes.items():
+            coord = group.create_array(
+                dim, shape=(axis.size,), chunks=(axis.size,), dtype="f8", dimension_names=[dim]
+            )
+            coord[:] = axis.coordinate
+            coord.attrs.update({"kind": axis.kind, "units": _coordinate_units(dim, axis)})
+            for name, values in axis.values.items():
+                if name == dim and values.ndim == 1:
+                    continue
+                names = [dim] + [f"{name}_dim{i}" for i in range(values.ndim - 1)]
+                array = group.create_array(
+                    name, shape=values.shape, chunks=values.shape, dtype="f8", dimension_names=names
+                )
+                array[...] = values
+                array.attrs["units"] = axis.units.get(name, "")
+                coordinates.append(name)
+        units, given_dims = meta.get("units", {}), meta.get("output_dims", {})
+        for name, spec in outputs.items():
+            extra = tuple(spec.shape)
+            dtype = np.dtype(spec.dtype)
+            fill = np.nan if np.issubdtype(dtype, np.floating) else 0
+            array = group.create_array(
+                name,
+                shape=layout.sizes + extra,
+                chunks=layout.block + extra,
+                dtype=dtype,
+                fill_value=fill,
+                dimension_names=dims + _output_dims(name, extra, given_dims.get(name)),
+            )
+            array.attrs["units"] = units.get(name, "")
+            if coordinates:
+                array.attrs["coordinates"] = " ".join(coordinates)
+        manifest = group.create_group(_MANIFEST)
+        manifest.create_array("done", shape=(layout.count,), chunks=(1,), dtype="u1", fill_value=0)
+        description = {
+            "format": _FORMAT,
+            "dims": dims,
+            "sizes": list(layout.sizes),
+            "block": list(layout.block),
+            "outputs": sorted(outputs),
+            "fingerprint": meta["fingerprint"],
+        }
+        group.attrs.update({**meta.get("attrs", {}), "jaxbal_sweep": description})
+        return cls(group, layout)
+
+    @classmethod
+    def open(cls, path) -> SweepStore:
+        """An existing store (to resume it)."""
+        import zarr
+
+        group = zarr.open_group(str(path), mode="r+", zarr_format=3)
+        description = describe(group)
+        layout = Layout(tuple(description["sizes"]), tuple(description["block"]))
+        return cls(group, layout)
+
+    @property
+    def description(self) -> dict:
+        return describe(self.group)
+
+    def done(self) -> np.ndarray:
+        """``(blocks,)`` True where a block is done."""
+        return np.asarray(self.done_array[:]).astype(bool)
+
+    def write(self, k: int, outputs: dict) -> None:
+        """Write block ``k`` (``outputs``: name ↦ ``(*block extents, *shape)``) and then
+        mark it done."""
+        region = self.layout.region(k)
+        for name, values in outputs.items():
+            self.group[name][region] = values
+        self.done_array[k] = 1
+
+
+def describe(group) -> dict:
+    """The ``jaxbal_sweep`` attribute of a store's group."""
+    description = group.attrs.get("jaxbal_sweep")
+    if not isinstance(description, dict) or description.get("format") != _FORMAT:
+        raise ValueError("not a jaxbal sweep store (no jaxbal_sweep attribute)")
+    return description
+
+
+def _coordinate_units(dim: str, axis: Axis) -> str:
+    if axis.kind == "grid" and axis.values[dim].ndim == 1:
+        return axis.units.get(dim, "")
+    return ""
+
+
+def remove_partial_files(path) -> int:
+    """Delete the temporary ``*.partial`` files a killed zarr write leaves behind."""
+    removed = 0
+    for leftover in Path(path).rglob("*.partial"):
+        leftover.unlink(missing_ok=True)
+        removed += 1
+    return removed
+
+
+def open_dataset(source, *, complete: bool = True):
+    """The sweep in ``source`` (a path or a zarr group) as an :class:`xarray.Dataset`,
+    loaded into memory; ``complete``: raise if some blocks are not done."""
+    import xarray as xr
+    import zarr
+
+    group = source
+    if isinstance(source, str | Path):
+        if not Path(source).exists():
+            raise FileNotFoundError(f"no sweep store at {source}")
+        group = zarr.open_group(str(source), mode="r", zarr_format=3)
+    description = describe(group)
+    done = np.asarray(group[_MANIFEST]["done"][:]).astype(bool)
+    if complete and not done.all():
+        missing = int((~done).sum())
+        raise ValueError(f"{missing} of {done.size} blocks of the sweep are not done (resume it)")
+    dataset = xr.open_zarr(group.store, consolidated=False, mask_and_scale=False).load()
+    dataset.attrs.pop("jaxbal_sweep", None)
+    dataset.attrs["blocks_done"] = f"{int(done.sum())}/{done.size}"
+    dims = description["dims"]
+    return dataset.transpose(*dims, ...)
