@@ -3,6 +3,7 @@
 This module is the public index: everything a user needs is imported here or in the
 public submodules :mod:`jaxbal.robots`, :mod:`jaxbal.profiles`,
 :mod:`jaxbal.planning`, :mod:`jaxbal.design`, :mod:`jaxbal.sensitivity`,
+:mod:`jaxbal.sweep` (callable: ``jaxbal.sweep(metric, robot, motion, axes)``),
 :mod:`jaxbal.mujoco` (imported on first use: MuJoCo is slow to import) and
 :mod:`jaxbal.report`. The implementation lives in :mod:`jaxbal._src` (private).
 
@@ -11,7 +12,7 @@ Importing jaxbal enables float64 in JAX (see :mod:`jaxbal._src.config`).
 
 import importlib
 
-from jaxbal import design, planning, profiles, robots, sensitivity  # noqa: E402, I001
+from jaxbal import design, planning, profiles, robots, sensitivity, sweep  # noqa: E402, I001
 from jaxbal._src import config as _config  # noqa: F401  (enables float64 once)
 from jaxbal._src.actuation import actuator_torques, velocity_basis
 from jaxbal._src.dynamics import (
@@ -91,6 +92,7 @@ __all__ = [
     "set_runtime_checks",
     "shaking_wrench",
     "state_valid",
+    "sweep",
     "time_derivatives",
     "total_mass",
     "velocity_basis",

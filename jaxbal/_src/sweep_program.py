@@ -22,7 +22,16 @@ import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, NamedSharding, PartitionSpec
 
-__all__ = ["AXIS", "Program", "build", "chunk_memory", "device_mesh", "output_shapes", "run_chunk"]
+__all__ = [
+    "AXIS",
+    "Program",
+    "build",
+    "chunk_memory",
+    "device_mesh",
+    "output_shapes",
+    "pytrees",
+    "run_chunk",
+]
 
 #: name of the mesh axis the chunk is split along.
 AXIS = "points"
@@ -108,6 +117,12 @@ def build(metric, robot, motion, theta, plan, mesh=None) -> tuple[Program, list]
     dynamic, static = _split((robot, motion, dict(theta)))
     program = Program(metric, tuple(plan), callable(motion), static, mesh)
     return program, dynamic
+
+
+def pytrees(program: Program, dynamic) -> tuple:
+    """``(robot, motion, θ)`` of a program, its arrays as NumPy arrays (to pickle)."""
+    tree = _join(dynamic, program.static)
+    return jax.tree.map(lambda x: np.asarray(x) if isinstance(x, jax.Array) else x, tree)
 
 
 def _local(program: Program, dynamic, params):

@@ -20,7 +20,6 @@ References:
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import uuid
 from dataclasses import dataclass, field
@@ -67,14 +66,15 @@ def _connect(backend: RayBackend):
 
 
 def _worker_program(token: str, payload):
-    """The program with this worker's device mesh, compiled once per worker."""
+    """The program with this worker's device mesh, built once per worker from the
+    pickled ``(metric, plan, (robot, motion, θ))`` (pytree definitions of equinox
+    modules do not pickle; the modules themselves do)."""
     if token not in _PROGRAMS:
-        from jaxbal._src.sweep_program import device_mesh
+        from jaxbal._src.sweep_program import build, device_mesh
 
-        program, dynamic = payload
-        mesh = device_mesh()
+        metric, plan, (robot, motion, theta) = payload
         _PROGRAMS.clear()  # one sweep at a time per worker
-        _PROGRAMS[token] = (dataclasses.replace(program, mesh=mesh), dynamic)
+        _PROGRAMS[token] = build(metric, robot, motion, theta, plan, device_mesh())
     return _PROGRAMS[token]
 
 
@@ -101,9 +101,10 @@ def evaluate_ray(backend: RayBackend, program, dynamic, chunks, pending, write, 
         num_cpus=backend.num_cpus,
         num_gpus=backend.num_gpus,
     )
+    from jaxbal._src.sweep_program import pytrees
+
     token = uuid.uuid4().hex
-    host = [np.asarray(x) for x in dynamic]
-    payload = ray.put((dataclasses.replace(program, mesh=None), host))
+    payload = ray.put((program.metric, program.plan, pytrees(program, dynamic)))
     limit = backend.max_in_flight or max(2 * int(ray.cluster_resources().get("CPU", 1)), 1)
     queue, running = list(pending), {}
     try:

@@ -1,0 +1,85 @@
+"""Plots of a sweep: a line plot over one axis, a heat map over two."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["plot_sweep"]
+
+_REDUCERS = {"max": np.nanmax, "min": np.nanmin, "mean": np.nanmean}
+
+
+def _label(dataset, name: str) -> str:
+    units = dataset[name].attrs.get("units", "")
+    return f"{name} [{units}]" if units else name
+
+
+def _reduce(data, keep: int, how: str):
+    """``data`` with every dimension after the first ``keep`` reduced by ``how``."""
+    extra = list(data.dims[keep:])
+    if not extra:
+        return data, ""
+    if how not in _REDUCERS:
+        raise ValueError(f"unknown reduction {how!r}; choose one of {sorted(_REDUCERS)}")
+    reduced = data.reduce(_REDUCERS[how], dim=extra)
+    return reduced, f" ({how} over {', '.join(extra)})"
+
+
+def plot_sweep(source, variable: str | None = None, *, out=None, reduce: str = "max"):
+    """Line plot (one sweep axis) or heat map (the first two) of a sweep variable.
+
+    Args:
+        source: a sweep :class:`xarray.Dataset` or the path of its zarr store.
+        variable: the variable (default: the first one).
+        out: write the figure there as PNG (atomically) and close it.
+        reduce: ``"max"``, ``"min"`` or ``"mean"`` over the dimensions not drawn.
+
+    Returns:
+        The matplotlib figure (``None`` when written to ``out``).
+
+    Raises:
+        ValueError: an unknown variable or reduction.
+    """
+    import matplotlib
+
+    if out is not None:
+        matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from jaxbal._src.sweep_store import open_dataset
+
+    dataset = source if hasattr(source, "data_vars") else open_dataset(source, complete=False)
+    names = list(dataset.data_vars)
+    variable = names[0] if variable is None else variable
+    if variable not in dataset.data_vars:
+        raise ValueError(f"unknown sweep variable {variable!r}; the store has {names}")
+    data = dataset[variable]
+    axes = [d for d in data.dims if d in dataset.coords and data.sizes[d] > 1] or [data.dims[0]]
+    keep = min(len(axes), 2)
+    data = data.transpose(*axes[:keep], ...)
+    data, note = _reduce(data, keep, reduce)
+    fig, ax = plt.subplots(figsize=(6.4, 4.4))
+    x = data.dims[0]
+    if keep == 1:
+        ax.plot(dataset[x].values, data.values, marker="." if data.size < 60 else None)
+        ax.set_ylabel(_label(dataset, variable))
+    else:
+        y = data.dims[1]
+        mesh = ax.pcolormesh(
+            dataset[y].values, dataset[x].values, data.values, shading="nearest", cmap="viridis"
+        )
+        fig.colorbar(mesh, ax=ax, label=_label(dataset, variable))
+        ax.set_xlabel(_label(dataset, y))
+        ax.set_ylabel(_label(dataset, x))
+    if keep == 1:
+        ax.set_xlabel(_label(dataset, x))
+        ax.grid(alpha=0.3)
+    ax.set_title(f"{variable}{note}", fontsize=10)
+    if out is None:
+        return fig
+    from jaxbal._src.report import save_figure
+
+    save_figure(fig, Path(out))
+    return None

@@ -1,0 +1,325 @@
+"""``jaxbal.sweep``: labels, chunking, two host devices against a plain ``vmap`` bit for
+bit, a sweep killed by SIGKILL and resumed against an uninterrupted one, and the Ray
+backend on a local two-worker cluster (a worker killed mid-sweep) against the local run.
+
+The multi-device and Ray checks run in fresh interpreters: the device count is fixed
+when JAX starts, and Ray workers must unpickle the metric (a ``__main__`` function is
+sent by value).
+"""
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+import zarr
+
+import jaxbal
+from jaxbal.design import METRICS, motion_samples
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+#: shared by the child scripts: the Briot 2R, a bang-bang COM line P5 -> P9, 64 samples.
+SETUP = """
+import os, sys, json, signal
+import numpy as np, jax, jax.numpy as jnp
+import jaxbal
+robot = jaxbal.robots.planar_2r()
+q0 = robot.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
+q1 = robot.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
+plan = jaxbal.planning.com_line(robot, q0, q1, jaxbal.profiles.BangBang(), 0.5)
+motion = jaxbal.design.motion_samples(robot, [plan], jaxbal.sample_times(0.5, 64))
+"""
+
+
+def _child(script: str, *, devices: int = 1, timeout: int = 300, check=True):
+    env = dict(os.environ)
+    env["XLA_FLAGS"] = f"--xla_force_host_platform_device_count={devices}"
+    env["JAXBAL_CACHE_DIR"] = "off"
+    env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")
+    code = SETUP + textwrap.dedent(script)
+    out = subprocess.run(
+        [sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=timeout
+    )
+    if check and out.returncode != 0:
+        raise AssertionError(f"child failed ({out.returncode}):\n{out.stderr[-4000:]}")
+    return out
+
+
+def _json(out) -> dict:
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope="module")
+def arm():
+    robot = jaxbal.robots.planar_2r()
+    q0 = robot.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
+    q1 = robot.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
+    plan = jaxbal.planning.com_line(robot, q0, q1, jaxbal.profiles.BangBang(), 0.5)
+    return robot, motion_samples(robot, [plan], jaxbal.sample_times(0.5, 32))
+
+
+def _with(robot, **design):
+    current = robot.design()
+    return robot.with_design(
+        {k: jnp.broadcast_to(v, jnp.shape(current[k])) for k, v in design.items()}
+    )
+
+
+def test_labels_units_and_values_equal_the_metric_per_point(arm):
+    robot, motion = arm
+    cm, pl = np.linspace(0.0, 3.0, 4), np.linspace(0.0, 1.0, 3)
+    ds = jaxbal.sweep(
+        "peak_force", robot, motion, {"counter_mass": cm, "payload": pl}, progress=False
+    )
+    assert ds["value"].dims == ("counter_mass", "payload")
+    np.testing.assert_array_equal(ds["counter_mass"].values, cm)
+    np.testing.assert_array_equal(ds["payload"].values, pl)
+    assert ds["value"].attrs["units"] == "N"
+    assert ds.attrs["metric"] == "peak_force" and ds.attrs["blocks_done"] == "1/1"
+    metric = jax.jit(METRICS["peak_force"])
+    for i, c in enumerate(cm):
+        for j, p in enumerate(pl):
+            expected = float(metric(_with(robot, counter_mass=c, payload=p), motion))
+            assert ds["value"].values[i, j] == pytest.approx(expected, rel=1e-13)
+
+
+def _link1_mass(robot, value):
+    import equinox as eqx
+
+    return eqx.tree_at(lambda r: r.masses, robot, robot.masses.at[0].set(value))
+
+
+def test_where_setter_broadcasts_to_the_leaf(arm):
+    robot, motion = arm
+    axes = {"m": jaxbal.sweep.grid([1.0, 2.0], where=lambda r: r.masses)}
+    ds = jaxbal.sweep("peak_force", robot, motion, axes, progress=False)
+    import equinox as eqx
+
+    heavy = eqx.tree_at(lambda r: r.masses, robot, jnp.full_like(robot.masses, 2.0))
+    expected = float(jax.jit(METRICS["peak_force"])(heavy, motion))
+    assert ds["value"].values[1] == pytest.approx(expected, rel=1e-13)
+
+
+def test_dict_metric_where_setter_sobol_axis_and_output_dims(arm):
+    robot, motion = arm
+
+    def both(robot, motion):
+        force, moment = jax.vmap(lambda *x: jaxbal.shaking_wrench(robot, *x))(*motion)
+        return {"force": jnp.linalg.norm(force, axis=-1), "moment": moment[:, 2]}
+
+    axes = {
+        "link1": jaxbal.sweep.grid([1.0, 2.0], units="kg", set=_link1_mass),
+        "sample": jaxbal.sweep.sobol(4, {"payload": (0.0, 1.0)}, units={"payload": "kg"}),
+    }
+    ds = jaxbal.sweep(
+        both, robot, motion, axes, output_dims={"force": "t", "moment": "t"},
+        units={"force": "N", "moment": "N·m"}, progress=False,
+    )  # fmt: skip
+    assert ds["force"].dims == ("link1", "sample", "t") and ds.sizes["t"] == 32
+    assert ds["payload"].dims == ("sample",) and ds["payload"].attrs["units"] == "kg"
+    payloads = ds["payload"].values
+    assert np.all((payloads >= 0) & (payloads <= 1)) and len(set(payloads)) == 4
+    import equinox as eqx
+
+    changed = eqx.tree_at(lambda r: r.masses, robot, robot.masses.at[0].set(2.0))
+    loaded = _with(changed, payload=payloads[3])
+    force, moment = jax.vmap(lambda *x: jaxbal.shaking_wrench(loaded, *x))(*motion)
+    np.testing.assert_allclose(ds["force"].values[1, 3], np.linalg.norm(force, axis=-1), 1e-13)
+    np.testing.assert_allclose(ds["moment"].values[1, 3], moment[:, 2], 1e-13, 1e-12)
+
+
+def test_memory_budget_cuts_blocks_and_the_values_do_not_change(arm):
+    robot, motion = arm
+    axes = {"counter_mass": np.linspace(0, 3, 16), "payload": np.linspace(0, 1, 8)}
+    whole = jaxbal.sweep("rms_force", robot, motion, axes, progress=False)
+    cut = jaxbal.sweep("rms_force", robot, motion, axes, memory_budget=64 * 2**10, progress=False)
+    blocks = int(cut.attrs["blocks_done"].split("/")[1])
+    assert blocks > 1 and whole.attrs["blocks_done"] == "1/1"
+    np.testing.assert_array_equal(whole["value"].values, cut["value"].values)
+
+
+def test_bad_axes_are_refused_with_the_name(arm):
+    robot, motion = arm
+    with pytest.raises(ValueError, match="unknown sweep parameter 'bogus'"):
+        jaxbal.sweep("peak_force", robot, motion, {"bogus": [1.0, 2.0]}, progress=False)
+    with pytest.raises(ValueError, match="non-finite"):
+        jaxbal.sweep("peak_force", robot, motion, {"payload": [0.0, np.nan]}, progress=False)
+    with pytest.raises(ValueError, match="at least one axis"):
+        jaxbal.sweep("peak_force", robot, motion, {}, progress=False)
+
+
+def test_existing_store_needs_resume_and_the_same_sweep(arm, tmp_path):
+    robot, motion = arm
+    path = tmp_path / "s.zarr"
+    jaxbal.sweep("peak_force", robot, motion, {"payload": [0.0, 0.5]}, store=path, progress=False)
+    with pytest.raises(FileExistsError, match="resume=True"):
+        jaxbal.sweep("peak_force", robot, motion, {"payload": [0.0, 0.5]}, store=path)
+    with pytest.raises(ValueError, match="different sweep"):
+        jaxbal.sweep("peak_force", robot, motion, {"payload": [0.0, 0.6]}, store=path, resume=True)
+    again = jaxbal.sweep(
+        "peak_force", robot, motion, {"payload": [0.0, 0.5]}, store=path, resume=True
+    )
+    np.testing.assert_array_equal(again["value"].values, jaxbal.sweep.open_sweep(path)["value"])
+
+
+def test_two_host_devices_equal_plain_vmap_bit_for_bit():
+    result = _json(
+        _child(
+            """
+            cm, pl = np.linspace(0.0, 3.0, 16), np.linspace(0.0, 1.0, 8)
+            out = {"devices": jax.local_device_count()}
+            metric = jaxbal.design.METRICS["peak_force"]
+            def point(c, p):
+                d = robot.design()
+                r = robot.with_design({"counter_mass": jnp.broadcast_to(c, d["counter_mass"].shape),
+                                       "payload": jnp.broadcast_to(p, d["payload"].shape)})
+                return metric(r, motion)
+            C, P = np.meshgrid(cm, pl, indexing="ij")
+            plain = np.asarray(jax.jit(jax.vmap(point))(C.ravel(), P.ravel())).reshape(C.shape)
+            for chunk in (128, 64, 40, 7):
+                ds = jaxbal.sweep("peak_force", robot, motion, {"counter_mass": cm, "payload": pl},
+                                  chunk_size=chunk, progress=False)
+                out[str(chunk)] = [bool(np.array_equal(ds["value"].values, plain)),
+                                   ds.attrs["blocks_done"]]
+            print(json.dumps(out))
+            """,
+            devices=2,
+        )
+    )
+    assert result["devices"] == 2
+    for chunk in ("128", "64", "40", "7"):
+        equal, blocks = result[chunk]
+        assert equal, (chunk, blocks)
+    assert result["7"][1] != "1/1"  # several blocks, padded, on two devices
+
+
+KILLED = """
+from jaxbal._src import sweep_store
+path, kill_at = sys.argv[1], int(sys.argv[2])
+def both(robot, motion):
+    force, moment = jax.vmap(lambda *x: jaxbal.shaking_wrench(robot, *x))(*motion)
+    return {"peak": jnp.max(jnp.linalg.norm(force, axis=-1)), "moment": moment[:, 2]}
+if kill_at >= 0:
+    write = sweep_store.SweepStore.write
+    def dying(self, k, outputs):
+        if k == kill_at:  # one output of this block written, the other not, no done mark
+            name = sorted(outputs)[0]
+            self.group[name][self.layout.region(k)] = outputs[name]
+            os.kill(os.getpid(), signal.SIGKILL)
+        write(self, k, outputs)
+    sweep_store.SweepStore.write = dying
+axes = {"counter_mass": np.linspace(0, 3, 12), "payload": np.linspace(0, 1, 5)}
+jaxbal.sweep(both, robot, motion, axes, store=path, resume=True, chunk_size=5, progress=False)
+print(json.dumps({"done": True}))
+"""
+
+
+def _arrays(path) -> dict:
+    group = zarr.open_group(str(path), mode="r")
+    found = {}
+
+    def visit(g, prefix=""):
+        for name, item in g.members():
+            if isinstance(item, zarr.Group):
+                visit(item, prefix + name + "/")
+            else:
+                found[prefix + name] = (np.asarray(item[...]), dict(item.attrs))
+
+    visit(group)
+    return found, dict(group.attrs)
+
+
+def test_sigkill_mid_sweep_then_resume_equals_an_uninterrupted_store(tmp_path):
+    killed, clean = tmp_path / "killed.zarr", tmp_path / "clean.zarr"
+    out = _child(
+        KILLED.replace("sys.argv[1], int(sys.argv[2])", f"{str(killed)!r}, 5"), check=False
+    )
+    assert out.returncode == -9, out.stderr[-2000:]
+    done = np.asarray(zarr.open_group(str(killed), mode="r")["_jaxbal"]["done"][:])
+    assert 0 < done.sum() < done.size and done[5] == 0  # killed mid-sweep, block 5 unfinished
+    with pytest.raises(ValueError, match="not done"):
+        jaxbal.sweep.open_sweep(killed)
+    _child(KILLED.replace("sys.argv[1], int(sys.argv[2])", f"{str(killed)!r}, -1"))
+    _child(KILLED.replace("sys.argv[1], int(sys.argv[2])", f"{str(clean)!r}, -1"))
+    (a, a_attrs), (b, b_attrs) = _arrays(killed), _arrays(clean)
+    assert a_attrs == b_attrs and sorted(a) == sorted(b)
+    for name in a:
+        np.testing.assert_array_equal(a[name][0], b[name][0], err_msg=name)
+        assert a[name][1] == b[name][1], name
+    assert not list(killed.rglob("*.partial"))
+
+
+def test_resume_recomputes_only_the_missing_blocks(arm, tmp_path, monkeypatch):
+    from jaxbal._src import sweep_store
+
+    robot, motion = arm
+    path = tmp_path / "r.zarr"
+    axes = {"counter_mass": np.linspace(0, 3, 6), "payload": np.linspace(0, 1, 4)}
+    first = jaxbal.sweep("peak_force", robot, motion, axes, store=path, chunk_size=4)
+    group = zarr.open_group(str(path), mode="r+")
+    group["_jaxbal"]["done"][[1, 4]] = 0  # as if the run had stopped before these
+    group["value"][1:2, :] = np.nan
+    written = []
+    original = sweep_store.SweepStore.write
+    monkeypatch.setattr(
+        sweep_store.SweepStore,
+        "write",
+        lambda self, k, outputs: (written.append(k), original(self, k, outputs)),
+    )
+    again = jaxbal.sweep(
+        "peak_force", robot, motion, axes, store=path, chunk_size=4, resume=True, progress=False
+    )
+    assert written == [1, 4]
+    np.testing.assert_array_equal(again["value"].values, first["value"].values)
+
+
+RAY = """
+import ray
+from jaxbal._src.sweep_ray import RayBackend
+store = sys.argv[1]
+marker = store + ".kill-one-worker"
+open(marker, "w").close()
+def dies_once(x):
+    # runs on a worker, once per block: kill this worker once, after two blocks are done
+    import zarr
+    done = int(np.asarray(zarr.open_group(store, mode="r")["_jaxbal"]["done"][:]).sum())
+    if done >= 2 and os.path.exists(marker):
+        try:
+            os.remove(marker)
+        except FileNotFoundError:
+            return x
+        with open(store + ".killed", "w") as f:
+            f.write(str(os.getpid()))
+        os.kill(os.getpid(), signal.SIGKILL)
+    return x
+def metric(robot, motion):
+    value = jaxbal.design.METRICS["peak_force"](robot, motion)
+    return jax.pure_callback(dies_once, jax.ShapeDtypeStruct((), jnp.float64), value,
+                             vmap_method="broadcast_all")
+axes = {"counter_mass": np.linspace(0, 3, 16), "payload": np.linspace(0, 1, 8)}
+local = jaxbal.sweep(jaxbal.design.METRICS["peak_force"], robot, motion, axes, chunk_size=16,
+                     progress=False)
+ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False)
+backend = RayBackend(max_retries=3)
+remote = jaxbal.sweep(metric, robot, motion, axes, chunk_size=16, store=store, backend=backend,
+                      progress=False)
+killed = open(store + ".killed").read() if os.path.exists(store + ".killed") else None
+print(json.dumps({"equal": bool(np.array_equal(local["value"].values, remote["value"].values)),
+                  "blocks": remote.attrs["blocks_done"], "killed": killed,
+                  "workers": len({w for w in [killed] if w})}))
+ray.shutdown()
+"""
+
+
+def test_ray_two_workers_equal_local_after_a_worker_is_killed(tmp_path):
+    store = str(tmp_path / "ray.zarr")
+    result = _json(_child(RAY.replace("sys.argv[1]", repr(store)), timeout=400))
+    assert result["killed"] is not None  # a worker really died mid-sweep
+    assert result["blocks"] == "8/8"
+    assert result["equal"]
