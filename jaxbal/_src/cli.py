@@ -141,5 +141,62 @@ def balance(
     typer.echo(f"balanced peak shaking moment {result.peak_moment[1]:.6g} N·m")
 
 
+@app.command("sweep")
+def sweep_command(
+    spec: Path = typer.Argument(..., help="the sweep's TOML spec (robot, motion, metric, axes)"),
+    out: Path = typer.Option(..., "--out", help="zarr store written block by block"),
+    resume: bool = typer.Option(False, "--resume", help="continue an interrupted store"),
+    backend: str = typer.Option("local", "--backend", help="local or ray"),
+    address: str = typer.Option(None, "--address", help="Ray cluster address (e.g. auto)"),
+    progress: bool = typer.Option(True, "--progress/--no-progress", help="progress bar"),
+):
+    """Evaluate a metric over the axes of SPEC into the zarr store OUT.
+
+    The spec format is documented in jaxbal/_src/sweep_spec.py (example:
+    experiments/sweeps/dual_v_payload.toml). After an interruption, the same command
+    with --resume computes only the missing blocks. --backend ray sends the blocks to the
+    Ray cluster at --address (default: a new local one).
+    """
+    from jaxbal._src.sweep import sweep
+    from jaxbal._src.sweep_ray import RayBackend
+    from jaxbal._src.sweep_spec import load_spec
+
+    if backend not in ("local", "ray"):
+        typer.echo(f"error: unknown backend {backend!r}; choose one of ['local', 'ray']", err=True)
+        raise typer.Exit(code=2)
+    try:
+        loaded = load_spec(spec)
+        chosen = RayBackend(address=address) if backend == "ray" else "local"
+        dataset = sweep(
+            loaded.metric, loaded.robot, loaded.motion, loaded.axes, trajectory=loaded.trajectory,
+            store=out, resume=resume, backend=chosen, progress=progress,
+            attrs=loaded.description, **loaded.options,
+        )  # fmt: skip
+    except (ValueError, FileExistsError) as error:
+        typer.echo(f"error: {error}", err=True)
+        raise typer.Exit(code=2) from None
+    sizes = ", ".join(f"{k}={v}" for k, v in dataset.sizes.items())
+    typer.echo(f"{out}: {', '.join(dataset.data_vars)} over {sizes}")
+
+
+@app.command("plot")
+def plot_command(
+    store: Path = typer.Argument(..., help="a sweep's zarr store"),
+    out: Path = typer.Option(None, "--out", help="PNG to write (default: STORE with .png)"),
+    variable: str = typer.Option(None, "--variable", help="variable (default: the first)"),
+    reduce: str = typer.Option("max", "--reduce", help="max, min or mean over other dims"),
+):
+    """Draw a sweep: a line plot over one axis, a heat map over two."""
+    from jaxbal._src.sweep_plot import plot_sweep
+
+    target = out or store.with_suffix(".png")
+    try:
+        plot_sweep(store, variable, out=target, reduce=reduce)
+    except (ValueError, FileNotFoundError) as error:
+        typer.echo(f"error: {error}", err=True)
+        raise typer.Exit(code=2) from None
+    typer.echo(f"wrote {target}")
+
+
 if __name__ == "__main__":
     app()

@@ -44,12 +44,11 @@ METRIC_UNITS = {
 }
 #: largest block [points] (keeps the progress bar and the store's chunks moving).
 MAX_CHUNK = 2**18
-#: fewest points one device evaluates per call (unless the whole sweep is smaller).
-#: XLA's CPU backend picks its loop code by array size: measured on the 2R, a batch whose
-#: arrays hold fewer than ~2,048 elements (batch × samples) can differ from a larger one
-#: in the last bit at some points. With every device batch either ≥ this many points or
-#: the whole sweep, a point's value is the one a plain ``jit(vmap)`` of the sweep gives,
-#: bit for bit.
+#: XLA's CPU backend picks its loop code by array size: measured on the 2R, batches
+#: whose arrays hold fewer than ~2,048 elements (points × samples) can differ from larger
+#: ones in the last bit at some points. A sweep whose device batches hold at least this
+#: many points (the default memory budget gives that for cheap metrics), or that is one
+#: block, equals a plain ``jit(vmap)`` of the metric bit for bit; otherwise to rounding.
 MIN_DEVICE_BATCH = 2048
 
 
@@ -97,18 +96,12 @@ class Chunks:
 
     Attributes:
         axes, layout: the sweep's axes and blocks.
-        batch: points per call: a block padded to a multiple of the device count, with
-            at least :data:`MIN_DEVICE_BATCH` points per device, or the whole sweep's
-            when it is smaller (so that each device evaluates a batch of the size a plain
-            ``vmap`` of the sweep would, or of the same large-batch regime).
+        batch: points per call (a block padded to a multiple of the device count).
     """
 
-    def __init__(
-        self, axes: dict[str, Axis], layout: Layout, devices: int, minimum: int = MIN_DEVICE_BATCH
-    ):
+    def __init__(self, axes: dict[str, Axis], layout: Layout, devices: int):
         self.axes, self.layout = axes, layout
-        floor = min(minimum, math.prod(layout.sizes))
-        self.batch = max(math.ceil(layout.points / devices), floor) * devices
+        self.batch = math.ceil(layout.points / devices) * devices
 
     def params(self, k: int) -> tuple[dict, int]:
         """``({parameter: (batch, …)}, m)``: block ``k``'s ``m`` points, the last one
@@ -212,7 +205,7 @@ def sweep(
             raise ValueError(f"{path} holds a different sweep (axes, values or outputs differ)")
     else:
         if chunk_size is None:
-            first, _ = Chunks(axes, Layout.for_chunk(sizes, 1), 1, minimum=1).params(0)
+            first, _ = Chunks(axes, Layout.for_chunk(sizes, 1), 1).params(0)
             chunk_size = _chunk_points(
                 program, dynamic, first, memory_budget, math.prod(sizes), count
             )

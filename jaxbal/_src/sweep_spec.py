@@ -1,0 +1,273 @@
+"""A sweep described in a TOML file: the robot, the motion, the metric and the axes
+(``jaxbal sweep SPEC.toml --out sweep.zarr``).
+
+Example (``experiments/sweeps/dual_v_payload.toml``)::
+
+    metric = ["peak_force", "rms_torque"]     # a name of jaxbal.design.METRICS, or a list
+    memory_budget_mib = 256                   # optional; or chunk_size = 4096
+
+    [robot]
+    name = "dual_v"                           # built-in (jaxbal.robots.ROBOTS), or
+    # mjcf = "five_bar.xml"                   # a file, with end_effector_site, actuated,
+    # end_effector_site = "tip"               # independent, payload_body (from_mjcf)
+    [robot.options]                           # keyword arguments of the constructor
+    counter_masses = true
+
+    [motion]
+    kind = "end_effector"                     # straight end-effector line, or "trapezoid"
+    start = [0.0, -0.05, 0.0]                 # poses as robot.inverse_kinematics takes them
+    end = [0.05, 0.05, 0.0]
+    duration = 0.1                            # s
+    samples = 101
+    profile = "quintic"                       # "quintic" or "bang_bang" (kind end_effector)
+    # branch = [1, 1, 1, 1]                   # IK branch (default: the robot's)
+    # u2 = 0.25, ratio = 1.0                  # switch times of kind "trapezoid" (θ)
+
+    [axes.payload]
+    linspace = [0.0, 0.5, 20]                 # or values = [...]
+    units = "kg"
+
+    [axes.design]                             # a sample of several parameters together
+    sample = "sobol"                          # "sobol", "halton" or "uniform"
+    n = 64
+    seed = 0
+    bounds = { counter_mass = [2.0, 8.0] }
+    units = { counter_mass = "kg" }
+
+An axis's parameters are design variables of the robot (``robot.design()``) or, with
+``kind = "trapezoid"``, the switch-time variables ``u2`` and ``ratio`` of
+:class:`jaxbal.design.TrapezoidLine`. Relative paths are relative to the spec file.
+Every error is a :class:`ValueError` naming the offending key.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["SweepSpec", "load_spec"]
+
+_MOTION_KINDS = ("end_effector", "trapezoid")
+_PROFILES = ("quintic", "bang_bang")
+_SAMPLES = ("sobol", "halton", "uniform")
+_TOP = {"metric", "memory_budget_mib", "chunk_size", "robot", "motion", "axes"}
+
+
+@dataclass
+class SweepSpec:
+    """What :func:`jaxbal.sweep` is called with (see the module docstring).
+
+    Attributes:
+        robot: the robot; motion: a :class:`jaxbal.design.Motion` or a factory.
+        metric: a metric name, or a function returning ``{name: value}``.
+        axes: name ↦ :class:`jaxbal.sweep.Axis`; trajectory: fixed θ of a factory.
+        options: keyword arguments of :func:`jaxbal.sweep` (memory budget, chunk size).
+    """
+
+    robot: object
+    motion: object
+    metric: object
+    axes: dict
+    trajectory: dict = field(default_factory=dict)
+    options: dict = field(default_factory=dict)
+    description: dict = field(default_factory=dict)
+
+
+def _unknown(table: dict, allowed, where: str) -> None:
+    extra = sorted(set(table) - set(allowed))
+    if extra:
+        raise ValueError(f"unknown key(s) {extra} in {where}; allowed: {sorted(allowed)}")
+
+
+def _need(table: dict, key: str, where: str):
+    if key not in table:
+        raise ValueError(f"{where} needs {key!r}")
+    return table[key]
+
+
+def _robot(table: dict, folder: Path):
+    from jaxbal._src.robots import ALIASES, ROBOTS
+    from jaxbal._src.robots.mjcf_import import from_mjcf
+
+    _unknown(
+        table,
+        {"name", "mjcf", "options", "end_effector_site", "actuated", "independent", "payload_body"},
+        "[robot]",
+    )
+    options = dict(table.get("options", {}))
+    if ("name" in table) == ("mjcf" in table):
+        raise ValueError("[robot] needs exactly one of 'name' (built-in) or 'mjcf' (a file)")
+    if "mjcf" in table:
+        path = (folder / table["mjcf"]).resolve()
+        if not path.exists():
+            raise ValueError(f"[robot] mjcf = {table['mjcf']!r}: no such file ({path})")
+        keys = ("end_effector_site", "actuated", "independent", "payload_body")
+        kwargs = {k: table[k] for k in keys if k in table}
+        return from_mjcf(path, **kwargs, **options)
+    name = str(table["name"]).strip().lower()
+    key = ALIASES.get(name, name)
+    if key not in ROBOTS:
+        raise ValueError(f"[robot] name = {table['name']!r} is unknown; choose one of "
+                         f"{sorted(ROBOTS)}")  # fmt: skip
+    try:
+        return ROBOTS[key](**options)
+    except TypeError as error:
+        raise ValueError(f"[robot.options] {options} not accepted by {key}(): {error}") from None
+
+
+def _pose(table: dict, key: str):
+    import jax.numpy as jnp
+
+    value = np.asarray(_need(table, key, "[motion]"), dtype=float)
+    if value.ndim != 1 or not np.all(np.isfinite(value)):
+        raise ValueError(f"[motion] {key} must be a list of finite numbers, got {table[key]!r}")
+    return jnp.asarray(value)
+
+
+def _motion(robot, table: dict):
+    import jax.numpy as jnp
+
+    from jaxbal._src.joint_codesign import TrapezoidLine
+    from jaxbal._src.metrics import motion_samples
+    from jaxbal._src.planning import EndEffectorLine
+    from jaxbal._src.profiles import BangBang, Quintic
+    from jaxbal._src.trajectory import StraightLine, sample_times
+
+    allowed = {"kind", "start", "end", "duration", "samples", "profile", "branch", "u2", "ratio"}
+    _unknown(table, allowed, "[motion]")
+    kind = table.get("kind", "end_effector")
+    if kind not in _MOTION_KINDS:
+        raise ValueError(f"[motion] kind = {kind!r} is unknown; choose one of {_MOTION_KINDS}")
+    start, end = _pose(table, "start"), _pose(table, "end")
+    duration = float(_need(table, "duration", "[motion]"))
+    if not (np.isfinite(duration) and duration > 0):
+        raise ValueError(f"[motion] duration must be > 0 s, got {duration!r}")
+    samples = table.get("samples", 101)
+    if not isinstance(samples, int) or samples < 2:
+        raise ValueError(f"[motion] samples must be an integer ≥ 2, got {samples!r}")
+    times = sample_times(duration, samples)
+    if kind == "trapezoid":
+        theta = {"u2": float(table.get("u2", 0.25)), "ratio": float(table.get("ratio", 1.0))}
+        return TrapezoidLine(start, end, jnp.asarray(times)), theta
+    profile = table.get("profile", "quintic")
+    if profile not in _PROFILES:
+        raise ValueError(f"[motion] profile = {profile!r} is unknown; choose one of {_PROFILES}")
+    shape = Quintic() if profile == "quintic" else BangBang()
+    branch = table.get("branch")
+    branch = tuple(int(b) for b in branch) if isinstance(branch, list) else branch
+    line = EndEffectorLine(robot, StraightLine(start, end, shape, duration), branch=branch)
+    return motion_samples(robot, [line], times), {}
+
+
+def _axis(name: str, table: dict):
+    from jaxbal._src import sweep_axes
+
+    where = f"[axes.{name}]"
+    if "sample" in table:
+        _unknown(table, {"sample", "n", "seed", "bounds", "units"}, where)
+        kind = table["sample"]
+        if kind not in _SAMPLES:
+            raise ValueError(f"{where} sample = {kind!r} is unknown; choose one of {_SAMPLES}")
+        bounds = _need(table, "bounds", where)
+        if not isinstance(bounds, dict) or not bounds:
+            raise ValueError(f"{where} bounds must be a table {{parameter = [low, high]}}")
+        build = getattr(sweep_axes, kind)
+        return build(
+            _need(table, "n", where), bounds, seed=table.get("seed", 0), units=table.get("units")
+        )
+    _unknown(table, {"values", "linspace", "units"}, where)
+    if ("values" in table) == ("linspace" in table):
+        raise ValueError(f"{where} needs exactly one of 'values', 'linspace' or 'sample'")
+    if "linspace" in table:
+        spec = table["linspace"]
+        if not (isinstance(spec, list) and len(spec) == 3 and int(spec[2]) == spec[2] > 0):
+            raise ValueError(f"{where} linspace must be [start, stop, count], got {spec!r}")
+        values = np.linspace(float(spec[0]), float(spec[1]), int(spec[2]))
+    else:
+        values = table["values"]
+    return sweep_axes.grid(values, units=str(table.get("units", "")))
+
+
+def _metric(metric):
+    from jaxbal._src.metrics import METRICS
+
+    names = [metric] if isinstance(metric, str) else list(metric)
+    unknown = [n for n in names if n not in METRICS]
+    if not names or unknown:
+        raise ValueError(f"metric {unknown or metric!r} is unknown; choose from {sorted(METRICS)}")
+    if isinstance(metric, str):
+        return metric, None
+    chosen = tuple(names)
+    return _Metrics(chosen), {n: _unit(n) for n in chosen}
+
+
+def _unit(name: str) -> str:
+    from jaxbal._src.sweep import METRIC_UNITS
+
+    return METRIC_UNITS.get(name, "")
+
+
+@dataclass(frozen=True)
+class _Metrics:
+    """Several named metrics as one sweep metric ``{name: value}`` (hashable)."""
+
+    names: tuple
+
+    @property
+    def __name__(self) -> str:
+        return "+".join(self.names)
+
+    def __call__(self, robot, motion) -> dict:
+        from jaxbal._src.metrics import METRICS
+
+        return {n: METRICS[n](robot, motion) for n in self.names}
+
+
+def _check_parameters(robot, axes: dict, theta: dict) -> None:
+    """Every swept parameter is a design variable of the robot or a θ of the motion."""
+    known = set(robot.design()) | set(theta)
+    for name, axis in axes.items():
+        values = axis.values if axis.kind != "grid" else {name: None}
+        for parameter in values:
+            if parameter not in known:
+                raise ValueError(
+                    f"[axes.{name}] parameter {parameter!r} is neither a design variable of "
+                    f"{type(robot).__name__} ({sorted(robot.design())}) nor a trajectory "
+                    f"variable of the motion ({sorted(theta) or 'none for this kind'})"
+                )
+
+
+def load_spec(path) -> SweepSpec:
+    """The :class:`SweepSpec` of the TOML file ``path``.
+
+    Raises:
+        ValueError: a missing file, invalid TOML, or an unknown/invalid key (named).
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ValueError(f"no sweep spec at {path}")
+    try:
+        table = tomllib.loads(path.read_text())
+    except tomllib.TOMLDecodeError as error:
+        raise ValueError(f"{path} is not valid TOML: {error}") from None
+    _unknown(table, _TOP, path.name)
+    robot = _robot(_need(table, "robot", path.name), path.parent)
+    motion, theta = _motion(robot, _need(table, "motion", path.name))
+    axes_table = _need(table, "axes", path.name)
+    if not isinstance(axes_table, dict) or not axes_table:
+        raise ValueError(f"{path.name} needs at least one [axes.NAME] table")
+    axes = {name: _axis(name, sub) for name, sub in axes_table.items()}
+    _check_parameters(robot, axes, theta)
+    metric, units = _metric(_need(table, "metric", path.name))
+    options = {}
+    if "memory_budget_mib" in table:
+        options["memory_budget"] = int(float(table["memory_budget_mib"]) * 2**20)
+    if "chunk_size" in table:
+        options["chunk_size"] = int(table["chunk_size"])
+    if units:
+        options["units"] = units
+    description = {"spec": path.name, "robot_spec": str(table["robot"])}
+    return SweepSpec(robot, motion, metric, axes, theta, options, description)
