@@ -37,7 +37,9 @@ Cartesian product of ``axes`` and returns an :class:`xarray.Dataset`::
   block whose worker died and writes it into the same store (``pip install
   "jaxbal[cluster]"``).
 
-:func:`plot_sweep` draws a line plot (one axis) or a heat map (two) of a variable.
+:func:`plot_sweep` draws a line plot (one axis) or a heat map (two) of a variable;
+:func:`load_spec` reads the TOML spec of ``jaxbal sweep SPEC.toml`` (format in
+:mod:`jaxbal._src.sweep_spec`).
 """
 
 import sys
@@ -47,6 +49,7 @@ from jaxbal._src.sweep import DEFAULT_MEMORY_BUDGET, METRIC_UNITS, sweep
 from jaxbal._src.sweep_axes import Axis, grid, halton, points, sobol, uniform
 from jaxbal._src.sweep_plot import plot_sweep
 from jaxbal._src.sweep_ray import RayBackend
+from jaxbal._src.sweep_spec import SweepSpec, load_spec
 from jaxbal._src.sweep_store import open_dataset as open_sweep
 
 __all__ = [
@@ -54,8 +57,10 @@ __all__ = [
     "METRIC_UNITS",
     "Axis",
     "RayBackend",
+    "SweepSpec",
     "grid",
     "halton",
+    "load_spec",
     "open_sweep",
     "plot_sweep",
     "points",
