@@ -155,6 +155,15 @@ def test_bad_axes_are_refused_with_the_name(arm):
         jaxbal.sweep("peak_force", robot, motion, {}, progress=False)
 
 
+def test_non_physical_points_raise_naming_the_axis_or_the_block(arm):
+    robot, motion = arm
+    with pytest.raises(ValueError, match=r"axis 'payload': payload = -1.0 is below"):
+        jaxbal.sweep("peak_force", robot, motion, {"payload": [0.0, -1.0]}, progress=False)
+    negative = {"m": jaxbal.sweep.grid([1.0, -1.0], where=lambda r: r.masses)}
+    with pytest.raises(ValueError, match=r"block 0 \(m in \[-1, 1\]\): body masses must be"):
+        jaxbal.sweep("peak_force", robot, motion, negative, progress=False)
+
+
 def test_existing_store_needs_resume_and_the_same_sweep(arm, tmp_path):
     robot, motion = arm
     path = tmp_path / "s.zarr"

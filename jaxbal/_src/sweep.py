@@ -27,7 +27,15 @@ from jaxbal._src.sweep_program import (
 from jaxbal._src.sweep_run import run_backend
 from jaxbal._src.sweep_store import SweepStore, fingerprint, open_dataset, remove_partial_files
 
-__all__ = ["DEFAULT_MEMORY_BUDGET", "METRIC_UNITS", "Chunks", "plan_parameters", "prepare", "sweep"]
+__all__ = [
+    "DEFAULT_MEMORY_BUDGET",
+    "METRIC_UNITS",
+    "Chunks",
+    "check_bounds",
+    "plan_parameters",
+    "prepare",
+    "sweep",
+]
 
 #: bytes one device may use for a block's temporaries, inputs and outputs (default).
 DEFAULT_MEMORY_BUDGET = 512 * 2**20
@@ -66,6 +74,27 @@ def _axes(axes: Mapping) -> dict[str, Axis]:
         seen |= set(axis.values)
         named[dim] = axis
     return named
+
+
+def check_bounds(axes: dict[str, Axis], robot, plan) -> None:
+    """Design variables swept below their lower bound (``robot.design_lower_bounds()``,
+    e.g. a negative mass) are refused before anything runs, naming axis and value."""
+    if not hasattr(robot, "design_lower_bounds"):
+        return
+    lower = robot.design_lower_bounds()
+    kinds = {name: how for name, how, _ in plan}
+    for dim, axis in axes.items():
+        for name, values in axis.values.items():
+            if kinds.get(name) != "design" or name not in lower:
+                continue
+            bound = np.asarray(lower[name], dtype=float)
+            bad = np.any(values.reshape(len(values), -1) < bound.reshape(-1), axis=1)
+            if bad.any():
+                worst = values[np.argmax(bad)].tolist()
+                raise ValueError(
+                    f"sweep axis {dim!r}: {name} = {worst!r} is below its lower bound "
+                    f"{bound.tolist()} ({type(robot).__name__}.design_lower_bounds())"
+                )
 
 
 def plan_parameters(axes: dict[str, Axis], robot, motion) -> tuple:
@@ -134,6 +163,7 @@ def prepare(metric, robot, motion, axes, *, trajectory=None, devices=None, mesh=
     axes = _axes(axes)
     function = resolve_metric(metric) if isinstance(metric, str) else metric
     plan = plan_parameters(axes, robot, motion)
+    check_bounds(axes, robot, plan)
     theta = {k: np.asarray(v, dtype=float) for k, v in (trajectory or {}).items()}
     device_list = None if devices is None else list(devices)
     program, dynamic = build(

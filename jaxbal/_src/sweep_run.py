@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from jaxbal._src.sweep_program import put, run_chunk
 from jaxbal._src.sweep_ray import RayBackend, evaluate_ray
 
@@ -50,7 +52,10 @@ def evaluate_local(program, dynamic, chunks, pending, write, advance) -> None:
     in_flight = None
     for k in pending:
         params, m = chunks.params(k)
-        result = run_chunk(program, dynamic, put(program, params))
+        try:
+            result = run_chunk(program, dynamic, put(program, params))
+        except Exception as error:  # noqa: BLE001 - re-raised with the block named
+            raise _block_error(chunks, k, error) from error
         if in_flight is not None:
             _finish(chunks, *in_flight, write, advance)
         in_flight = (k, result, m)
@@ -58,6 +63,26 @@ def evaluate_local(program, dynamic, chunks, pending, write, advance) -> None:
         _finish(chunks, *in_flight, write, advance)
 
 
+def _block_error(chunks, k: int, error: Exception) -> Exception:
+    """A runtime check that failed in block ``k`` (e.g. a non-physical robot built by a
+    setter) as a ``ValueError`` naming the block's parameter ranges and the check."""
+    import re
+
+    text = str(error)
+    found = re.findall(r"_EquinoxRuntimeError: ([^\n]+)", text)
+    if not found:
+        return error
+    params, m = chunks.params(k)
+    ranges = ", ".join(
+        f"{n} in [{np.min(v[:m]):.6g}, {np.max(v[:m]):.6g}]" for n, v in params.items()
+    )
+    return ValueError(f"sweep block {k} ({ranges}): {found[-1].strip()}")
+
+
 def _finish(chunks, k, result, m, write, advance):
-    write(k, chunks.unpad(k, result, m))
+    try:
+        outputs = chunks.unpad(k, result, m)
+    except Exception as error:  # noqa: BLE001 - JAX reports runtime checks here
+        raise _block_error(chunks, k, error) from error
+    write(k, outputs)
     advance(m)
