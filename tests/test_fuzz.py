@@ -135,3 +135,42 @@ def test_cli_unknown_names(tmp_path, name):
     assert result.exit_code == 2, result.output
     assert not out.exists()
     assert "Traceback" not in result.output
+
+
+SWEEP_ARM = jaxbal.robots.planar_2r()
+_Q0 = SWEEP_ARM.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
+_Q1 = SWEEP_ARM.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
+SWEEP_MOTION = jaxbal.design.motion_samples(
+    SWEEP_ARM,
+    [jaxbal.planning.com_line(SWEEP_ARM, _Q0, _Q1, jaxbal.profiles.BangBang(), 0.5)],
+    jaxbal.sample_times(0.5, 8),
+)
+_PEAK = eqx.filter_jit(jaxbal.design.METRICS["peak_force"])
+
+
+@given(payloads=st.lists(hostile, min_size=2, max_size=2), masses=hostile)
+def test_sweep_hostile_axis_values(payloads, masses):
+    """A sweep raises naming the axis (non-finite values, below the design bound) or the
+    failing block (a non-physical leaf set by ``where=``), or every point equals the
+    metric evaluated on its own."""
+    try:
+        axes = {
+            "payload": jaxbal.sweep.grid(payloads, units="kg"),
+            "m": jaxbal.sweep.grid([masses], where=lambda r: r.masses),
+        }
+        ds = jaxbal.sweep("peak_force", SWEEP_ARM, SWEEP_MOTION, axes, chunk_size=2, progress=False)
+    except ValueError as error:
+        text = str(error)
+        if "is not finite at" in text:  # an overflow, named at its point
+            assert "sweep output 'value'" in text and masses > 1e100, text
+            return
+        assert "grid has non-finite" in text or "payload" in text or "body masses" in text, text
+        finite = np.all(np.isfinite(payloads)) and np.isfinite(masses)
+        assert not (finite and min(payloads) >= 0 and masses >= 0), text
+        return
+    values = ds["value"].values
+    assert np.all(np.isfinite(values))
+    for i, p in enumerate(payloads):
+        robot = eqx.tree_at(lambda r: r.masses, SWEEP_ARM, jnp.full_like(SWEEP_ARM.masses, masses))
+        robot = robot.with_design({"payload": jnp.asarray(p)})
+        np.testing.assert_allclose(values[i, 0], _PEAK(robot, SWEEP_MOTION), rtol=1e-12)

@@ -134,6 +134,22 @@ def test_dict_metric_where_setter_sobol_axis_and_output_dims(arm):
     np.testing.assert_allclose(ds["moment"].values[1, 3], moment[:, 2], 1e-13, 1e-12)
 
 
+def test_array_valued_and_renamed_grids(arm):
+    robot, motion = arm
+    per_link = np.array([[0.0, 0.5], [1.0, 0.0], [2.0, 1.0]])  # (n, 2): one mass per link
+    ds = jaxbal.sweep(
+        "peak_force", robot, motion,
+        {"counter_mass": jaxbal.sweep.grid(per_link, units="kg"),
+         "load": jaxbal.sweep.grid([0.0, 0.5], units="kg", name="payload")},
+        progress=False,
+    )  # fmt: skip
+    np.testing.assert_array_equal(ds["counter_mass"].values, [0, 1, 2])  # index coordinate
+    np.testing.assert_array_equal(ds["counter_mass_values"].values, per_link)
+    assert ds["counter_mass_values"].attrs["units"] == "kg" and ds["load"].attrs["units"] == "kg"
+    expected = METRICS["peak_force"](_with(robot, counter_mass=per_link[2], payload=0.5), motion)
+    assert ds["value"].values[2, 1] == pytest.approx(float(expected), rel=1e-13)
+
+
 def test_memory_budget_cuts_blocks_and_the_values_do_not_change(arm):
     robot, motion = arm
     axes = {"counter_mass": np.linspace(0, 3, 16), "payload": np.linspace(0, 1, 8)}

@@ -128,8 +128,10 @@ class Chunks:
         batch: points per call (a block padded to a multiple of the device count).
     """
 
-    def __init__(self, axes: dict[str, Axis], layout: Layout, devices: int):
-        self.axes, self.layout = axes, layout
+    def __init__(
+        self, axes: dict[str, Axis], layout: Layout, devices: int, allow_nonfinite: bool = False
+    ):
+        self.axes, self.layout, self.allow_nonfinite = axes, layout, allow_nonfinite
         self.batch = math.ceil(layout.points / devices) * devices
 
     def params(self, k: int) -> tuple[dict, int]:
@@ -145,9 +147,27 @@ class Chunks:
         return params, m
 
     def unpad(self, k: int, outputs: dict, m: int) -> dict:
-        """Block ``k``'s outputs ``{name: (*extents, …)}`` from a batch's."""
+        """Block ``k``'s outputs ``{name: (*extents, …)}`` from a batch's.
+
+        Raises:
+            ValueError: an output is not finite at some point (an overflow, a metric
+                that divides by zero, …), unless ``allow_nonfinite``; the message names
+                the output and the point's parameters.
+        """
         extents = tuple(r.stop - r.start for r in self.layout.region(k))
-        return {n: np.asarray(v)[:m].reshape(extents + v.shape[1:]) for n, v in outputs.items()}
+        result = {n: np.asarray(v)[:m].reshape(extents + v.shape[1:]) for n, v in outputs.items()}
+        if not self.allow_nonfinite:
+            for name, values in result.items():
+                flat = values.reshape(m, -1)
+                if np.issubdtype(flat.dtype, np.floating) and not np.all(np.isfinite(flat)):
+                    i = int(np.argmax(~np.all(np.isfinite(flat), axis=1)))
+                    params, _ = self.params(k)
+                    at = ", ".join(f"{p} = {np.asarray(v[i]).tolist()}" for p, v in params.items())
+                    raise ValueError(
+                        f"sweep output {name!r} is not finite at {at} (block {k}); pass "
+                        "allow_nonfinite=True to store such values"
+                    )
+        return result
 
 
 def _chunk_points(program, dynamic, params, budget, total, devices) -> int:
@@ -212,12 +232,20 @@ def sweep(
     backend="local",
     progress: bool = True,
     attrs: Mapping | None = None,
+    allow_nonfinite: bool = False,
 ):
     """Evaluate ``metric(robot, motion)`` on the Cartesian product of ``axes``.
 
     See :mod:`jaxbal.sweep` for the full description; returns an
     :class:`xarray.Dataset` with one variable per output of the metric, dimensions the
     axes then the output's own, coordinates the axes' values, ``units`` attributes.
+
+    Raises:
+        ValueError: an unknown parameter, values that are not finite or below a design
+            variable's lower bound (naming the axis), a runtime check failing in a block
+            (naming its parameter ranges), or a non-finite output (naming the point;
+            ``allow_nonfinite=True`` stores it instead). The blocks finished before
+            stay in the store.
     """
     axes, program, dynamic, outputs = prepare(
         metric, robot, motion, axes, trajectory=trajectory, devices=devices
@@ -241,7 +269,7 @@ def sweep(
             )
         layout = Layout.for_chunk(sizes, chunk_size)
         opened = SweepStore.create(path, axes, layout, outputs, meta)
-    chunks = Chunks(axes, opened.layout, count)
+    chunks = Chunks(axes, opened.layout, count, allow_nonfinite)
     pending = [k for k, done in enumerate(opened.done()) if not done]
     run_backend(backend, program, dynamic, chunks, pending, opened, progress)
     return open_dataset(opened.group)

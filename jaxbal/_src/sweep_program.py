@@ -165,10 +165,23 @@ def output_shapes(program: Program, dynamic, params: dict) -> dict:
     return jax.eval_shape(program.point, dynamic, one)
 
 
+#: ``chunk_memory`` results by program and argument shapes (values do not matter).
+_MEMORY: dict = {}
+
+
 def chunk_memory(program: Program, dynamic, params: dict, probe: int = 64) -> tuple[int, int]:
     """``(bytes per point, fixed bytes)`` of one device evaluating a chunk, from XLA's
     memory analysis of the batch at ``probe`` and ``2·probe`` points (temporaries and
-    outputs; the robot and motion are shared by all points)."""
+    outputs; the robot and motion are shared by all points). Cached per program and
+    shapes, so a repeated sweep compiles no probe."""
+    shapes = tuple((k, np.shape(v)[1:]) for k, v in sorted(params.items()))
+    key = (program, shapes, tuple(np.shape(x) for x in dynamic), probe)
+    if key not in _MEMORY:
+        _MEMORY[key] = _measure(program, dynamic, params, probe)
+    return _MEMORY[key]
+
+
+def _measure(program: Program, dynamic, params: dict, probe: int) -> tuple[int, int]:
     sizes = []
     for batch in (probe, 2 * probe):
         stacked = {k: np.repeat(np.asarray(v)[:1], batch, axis=0) for k, v in params.items()}

@@ -80,15 +80,17 @@ class SweepStore:
             coord[:] = axis.coordinate
             coord.attrs.update({"kind": axis.kind, "units": _coordinate_units(dim, axis)})
             for name, values in axis.values.items():
-                if name == dim and values.ndim == 1:
-                    continue
+                if axis.kind == "grid" and values.ndim == 1:
+                    continue  # the values are the coordinate itself
+                key = parameter_key(dim, name)
                 names = [dim] + [f"{name}_dim{i}" for i in range(values.ndim - 1)]
                 array = group.create_array(
-                    name, shape=values.shape, chunks=values.shape, dtype="f8", dimension_names=names
+                    key, shape=values.shape, chunks=values.shape, dtype="f8", dimension_names=names
                 )
                 array[...] = values
                 array.attrs["units"] = axis.units.get(name, "")
-                coordinates.append(name)
+                array.attrs["parameter"] = name
+                coordinates.append(key)
         units, given_dims = meta.get("units", {}), meta.get("output_dims", {})
         for name, spec in outputs.items():
             extra = tuple(spec.shape)
@@ -153,9 +155,17 @@ def describe(group) -> dict:
     return description
 
 
+def parameter_key(dim: str, name: str) -> str:
+    """Store name of a parameter's values: the parameter's name, or ``NAME_values`` when
+    it is the axis's own name (an array-valued grid: the coordinate is then ``0 … n-1``)."""
+    return f"{name}_values" if name == dim else name
+
+
 def _coordinate_units(dim: str, axis: Axis) -> str:
-    if axis.kind == "grid" and axis.values[dim].ndim == 1:
-        return axis.units.get(dim, "")
+    """The coordinate's unit: a scalar grid's values are the coordinate."""
+    (name, values), *others = axis.values.items()
+    if axis.kind == "grid" and not others and values.ndim == 1:
+        return axis.units.get(name, "")
     return ""
 
 
