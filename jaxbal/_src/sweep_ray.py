@@ -72,7 +72,7 @@ def _worker_program(token: str, payload):
     if token not in _PROGRAMS:
         from jaxbal._src.sweep_program import build, device_mesh
 
-        metric, plan, (robot, motion, theta) = payload
+        metric, plan, (robot, motion, theta), _ = payload
         _PROGRAMS.clear()  # one sweep at a time per worker
         _PROGRAMS[token] = build(metric, robot, motion, theta, plan, device_mesh())
     return _PROGRAMS[token]
@@ -80,7 +80,7 @@ def _worker_program(token: str, payload):
 
 def evaluate_block(token: str, payload, params: dict) -> dict:
     """One block on this process's devices: ``{output: (B, …)}`` as NumPy arrays."""
-    from jaxbal._src.sweep_program import put, run_chunk
+    from jaxbal._src.sweep_program import evaluate, put
 
     program, dynamic = _worker_program(token, payload)
     batch = len(next(iter(params.values())))
@@ -88,11 +88,13 @@ def evaluate_block(token: str, payload, params: dict) -> dict:
     if padded != batch:
         params = {k: np.concatenate([v, np.repeat(v[-1:], padded - batch, 0)]) for k, v in
                   params.items()}  # fmt: skip
-    result = run_chunk(program, dynamic, put(program, params))
+    result = evaluate(program, dynamic, put(program, params), payload[3])
     return {k: np.asarray(v)[:batch] for k, v in result.items()}
 
 
-def evaluate_ray(backend: RayBackend, program, dynamic, chunks, pending, write, advance) -> None:
+def evaluate_ray(
+    backend: RayBackend, program, dynamic, chunks, pending, write, advance, fold=False
+) -> None:
     """Evaluate the ``pending`` blocks as Ray tasks; ``write(k, outputs)`` each result."""
     ray = _connect(backend)
     remote = ray.remote(evaluate_block).options(
@@ -104,7 +106,7 @@ def evaluate_ray(backend: RayBackend, program, dynamic, chunks, pending, write, 
     from jaxbal._src.sweep_program import pytrees
 
     token = uuid.uuid4().hex
-    payload = ray.put((program.metric, program.plan, pytrees(program, dynamic)))
+    payload = ray.put((program.metric, program.plan, pytrees(program, dynamic), fold))
     limit = backend.max_in_flight or max(2 * int(ray.cluster_resources().get("CPU", 1)), 1)
     queue, running = list(pending), {}
     try:

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from jaxbal._src.sweep_program import put, run_chunk
+from jaxbal._src.sweep_program import evaluate, put
 from jaxbal._src.sweep_ray import RayBackend, evaluate_ray
 
 __all__ = ["evaluate_local", "run_backend"]
@@ -29,7 +29,9 @@ def _progress(chunks, pending, enabled: bool):
     )
 
 
-def run_backend(backend, program, dynamic, chunks, pending, store, progress: bool) -> None:
+def run_backend(
+    backend, program, dynamic, chunks, pending, store, progress: bool, fold: bool = False
+) -> None:
     """Evaluate the ``pending`` blocks on ``backend`` (``"local"``, ``"ray"`` or a
     :class:`~jaxbal._src.sweep_ray.RayBackend`) and write them to ``store``."""
     if backend == "ray":
@@ -39,21 +41,21 @@ def run_backend(backend, program, dynamic, chunks, pending, store, progress: boo
     bar = _progress(chunks, pending, progress)
     try:
         if isinstance(backend, RayBackend):
-            evaluate_ray(backend, program, dynamic, chunks, pending, store.write, bar.update)
+            evaluate_ray(backend, program, dynamic, chunks, pending, store.write, bar.update, fold)
         else:
-            evaluate_local(program, dynamic, chunks, pending, store.write, bar.update)
+            evaluate_local(program, dynamic, chunks, pending, store.write, bar.update, fold)
     finally:
         bar.close()
 
 
-def evaluate_local(program, dynamic, chunks, pending, write, advance) -> None:
+def evaluate_local(program, dynamic, chunks, pending, write, advance, fold=False) -> None:
     """Evaluate the ``pending`` blocks on the local devices, one call ahead of the
     writes (JAX dispatches asynchronously)."""
     in_flight = None
     for k in pending:
         params, m = chunks.params(k)
         try:
-            result = run_chunk(program, dynamic, put(program, params))
+            result = evaluate(program, dynamic, put(program, params), fold)
         except Exception as error:  # noqa: BLE001 - re-raised with the block named
             raise _block_error(chunks, k, error) from error
         if in_flight is not None:
