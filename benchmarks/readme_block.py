@@ -16,7 +16,64 @@ TARGETS = {
     "first_call_seconds": 1.5,
     "warm_first_call_seconds": 0.5,
     "codesign_speedup_compiled_20_variables": 20.0,
+    "sweep_speedup_vs_design_loop": 20.0,
 }
+
+
+#: the Python loops of the sweep benchmark (sweep_bench.py), as the README names them.
+SWEEP_LOOPS = {
+    "loop": "loop over designs: `jit`, robot and motion as arguments, `vmap` over payloads",
+    "loop_closure": "loop over designs: `jit`, robot and motion captured (folded as constants)",
+    "loop_points": "loop over designs × payloads: `jit(metric)` at each point",
+}
+
+
+def _yes(flag: bool) -> str:
+    return "met" if flag else "not met"
+
+
+def sweep_lines(s: dict) -> list[str]:
+    """The README lines of the DUAL-V design sweep against Python loops."""
+    mib, budget = 2**20, s["memory_budget_bytes"] / 2**20
+    default = s["default_budget"]
+    lines = [
+        "",
+        f"| DUAL-V sweep ({s['metric']}): {s['designs']} counter-mass designs × "
+        f"{s['payloads']} payloads × {s['samples']:,} samples | states/s | first call [s] "
+        f"| its time / sweep's ({budget:.0f} MiB) |",
+        "|---|---:|---:|---:|",
+        f"| `jaxbal.sweep`, {budget:.0f} MiB budget: {s['blocks']} blocks on "
+        f"{s['devices']} devices | {s['sweep_states_per_second']:.3g} | "
+        f"{s['sweep_first_call_seconds']:.1f} | 1 |",
+        f"| `jaxbal.sweep`, default {default['memory_budget_bytes'] / mib:.0f} MiB budget: "
+        f"{default['blocks']} block{'s' * (default['blocks'] != 1)} | "
+        f"{default['sweep_states_per_second']:.3g} | "
+        f"{default['first_call_seconds']:.1f} | "
+        f"{default['sweep_seconds'] / s['sweep_seconds']:.2f} |",
+    ]
+    for name, label in SWEEP_LOOPS.items():
+        b = s["baselines"][name]
+        lines.append(
+            f"| {label} | {b['states_per_second']:.3g} | {b['first_call_seconds']:.1f} | "
+            f"{b['speedup_of_sweep']:.2f} |"
+        )
+    m = s["block_memory_per_device"]
+    lines += [
+        "",
+        f"Sweep × the loop with arguments = {s['speedup_vs_loop']:.2f} (target ≥ "
+        f"{TARGETS['sweep_speedup_vs_design_loop']:.0f}: {_yes(s['speedup_target_met'])}). "
+        f"Memory of one block on one device ({m['points_per_device_per_call']:,} points), "
+        f"XLA's analysis: {m['total_bytes'] / mib:.2f} MiB (arguments "
+        f"{m['argument_bytes'] / mib:.2f}, of which robot and motion "
+        f"{m['argument_bytes_shared_robot_and_motion'] / mib:.2f}; temporaries "
+        f"{m['temp_bytes'] / mib:.2f}; outputs {m['output_bytes'] / mib:.2f}) for a "
+        f"{budget:.0f} MiB budget: {_yes(s['memory_within_budget'])} "
+        f"({_yes(s['memory_within_budget_without_shared_arguments'])} without the shared "
+        f"robot and motion); resident memory +{s['rss_growth_bytes_during_warm_sweep'] / mib:.0f}"
+        f" MiB during a warm sweep ({s['rss_growth_over_budget_times_devices']:.2f} × budget × "
+        "devices).",
+    ]
+    return lines
 
 
 def bench_block(result: dict) -> str:
@@ -77,6 +134,8 @@ def bench_block(result: dict) -> str:
             f"| {name} | {c['variables']} | {c['speedup_with_compile']:.2f} | "
             f"{c['speedup_compiled']:.2f} | {diff:.1e} |"
         )
+    if "sweep" in result:
+        lines += sweep_lines(result["sweep"])
     lines.append(BENCH_END)
     return "\n".join(lines)
 

@@ -1,11 +1,13 @@
 """jaxbal benchmarks: the generic shaking wrench on the five robots, gradients, compile
-latency (cold and warm processes) and co-design against SciPy, all in one run.
+latency (cold and warm processes), co-design against SciPy and a DUAL-V design sweep
+against Python loops, all in one run.
 
 Run with ``make bench``; results go to ``benchmarks/results/bench_<backend>.json``
 (atomic write) and the table between the bench markers of README.md. Ratios are always
 against a baseline measured in the same run (wrench_bench.py, codesign_bench.py,
-first_call.py document each one). Targets are stated beside the measured values; they
-are never asserted by the tests.
+first_call.py, sweep_bench.py document each one). Targets are stated beside the measured
+values; they are never asserted by the tests. ``--only sweep`` reruns the sweep section
+alone and merges it into the stored JSON (then rewrites the README block from it).
 """
 
 from __future__ import annotations
@@ -52,19 +54,29 @@ def first_calls(name: str, checks: bool) -> dict:
     return {"cold": runs[0], "warm": runs[1]}
 
 
+def sweep_section(designs: int, budget_mib: float) -> dict:
+    """The DUAL-V design sweep against Python loops, in a fresh process (sweep_bench.py:
+    its first call compiles, its resident memory is its own)."""
+    env = dict(os.environ, JAXBAL_CACHE_DIR="off", PYTHONPATH=str(HERE))
+    command = [sys.executable, str(HERE / "sweep_bench.py"), "--designs", str(designs)]
+    command += ["--budget-mib", str(budget_mib)]
+    out = subprocess.run(command, env=env, stdout=subprocess.PIPE, text=True, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def machine() -> dict:
+    return {
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "jax": jax.__version__,
+        "mujoco": mujoco.__version__,
+        "devices": [str(d) for d in jax.devices()],
+    }
+
+
 def run(args) -> dict:
     robots = args.robots or list(MOVES)
-    result = {
-        "machine": {
-            "platform": platform.platform(),
-            "python": platform.python_version(),
-            "jax": jax.__version__,
-            "mujoco": mujoco.__version__,
-            "devices": [str(d) for d in jax.devices()],
-        },
-        "targets": TARGETS,
-        "robots": {},
-    }
+    result = {"machine": machine(), "targets": TARGETS, "robots": {}}
     for name in robots:
         count = args.states if name == "planar_2r" else args.states // 5
         print(f"[bench] {name}: {count:,} states", flush=True)
@@ -82,6 +94,19 @@ def run(args) -> dict:
     }
     print("[bench] co-design vs SciPy SLSQP", flush=True)
     result["codesign"] = codesign_bench.bench_all()
+    print("[bench] DUAL-V design sweep vs Python loops", flush=True)
+    result["sweep"] = sweep_section(args.sweep_designs, args.sweep_budget_mib)
+    return result
+
+
+def merge_sweep(args, path: Path) -> dict:
+    """The stored result of ``path`` with its sweep section (and targets) measured anew."""
+    if not path.exists():
+        raise SystemExit(f"--only sweep merges into {path}, which does not exist: run all first")
+    result = json.loads(path.read_text())
+    print("[bench] DUAL-V design sweep vs Python loops", flush=True)
+    result["targets"] = TARGETS
+    result["sweep"] = sweep_section(args.sweep_designs, args.sweep_budget_mib)
     return result
 
 
@@ -94,10 +119,14 @@ def main():
     parser.add_argument("--chunk", type=int, default=1024)
     parser.add_argument("--robots", nargs="*", choices=list(MOVES))
     parser.add_argument("--readme", type=Path, default=HERE.parent / "README.md")
+    parser.add_argument("--sweep-designs", type=int, default=500)
+    parser.add_argument("--sweep-budget-mib", type=float, default=64.0)
+    parser.add_argument("--only", choices=["sweep"], help="rerun one section, merge it")
     args = parser.parse_args()
-    result = run(args)
+    path = args.out / f"bench_{jax.default_backend()}.json"
+    result = merge_sweep(args, path) if args.only == "sweep" else run(args)
     text = json.dumps(result, indent=2)
-    atomic_write_text(args.out / f"bench_{jax.default_backend()}.json", text + "\n")
+    atomic_write_text(path, text + "\n")
     print(text)
     if args.readme.exists() and not args.robots:
         update_readme(args.readme, result)

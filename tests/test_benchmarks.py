@@ -1,5 +1,7 @@
 """The README quotes the stored benchmark result: its bench block equals the block
-rendered from benchmarks/results/bench_cpu.json (run `make bench` to refresh both)."""
+rendered from benchmarks/results/bench_cpu.json (run `make bench` to refresh both); the
+stored design sweep has the size of issue 11, agrees with its loops, and its target flags
+follow from its numbers."""
 
 import json
 import sys
@@ -23,3 +25,16 @@ def test_stored_result_covers_the_five_robots_and_agrees_with_mujoco():
     assert set(result["robots"]) == {"planar_2r", "planar_3r", "scara", "dual_v", "orthoglide"}
     for name, robot in result["robots"].items():
         assert robot["max_relative_difference_vs_mujoco"] < 1e-9, name
+
+
+def test_stored_sweep_covers_the_issue_size_agrees_with_the_loops_and_states_its_targets():
+    result = json.loads((ROOT / "benchmarks" / "results" / "bench_cpu.json").read_text())
+    sweep = result["sweep"]
+    assert sweep["designs"] >= 100 and sweep["payloads"] >= 20 and sweep["samples"] >= 1000
+    assert sweep["blocks"] > 1
+    for name, loop in sweep["baselines"].items():
+        assert loop["max_relative_difference_vs_sweep"] < 1e-12, name
+    target = result["targets"]["sweep_speedup_vs_design_loop"]
+    assert sweep["speedup_target_met"] == (sweep["speedup_vs_loop"] >= target)
+    memory = sweep["block_memory_per_device"]["total_bytes"]
+    assert sweep["memory_within_budget"] == (memory <= sweep["memory_budget_bytes"])
