@@ -201,10 +201,10 @@ def _metric(metric):
     if isinstance(metric, str):
         return metric, None
     chosen = tuple(names)
-    return _Metrics(chosen), {n: _unit(n) for n in chosen}
+    return _Metrics(chosen), {n: _metric_unit(n) for n in chosen}
 
 
-def _unit(name: str) -> str:
+def _metric_unit(name: str) -> str:
     from jaxbal._src.sweep import METRIC_UNITS
 
     return METRIC_UNITS.get(name, "")
