@@ -24,7 +24,7 @@ test-all: lint
 	$(BIN)/python -m pytest -n 2 -q
 
 fuzz: $(STAMP)
-	JAXBAL_FUZZ=long $(BIN)/python -m pytest -q tests/test_fuzz.py --hypothesis-show-statistics
+	JAXBAL_FUZZ=long $(BIN)/python -m pytest -q tests/test_fuzz.py tests/test_fuzz_entry_points.py --hypothesis-show-statistics
 
 reproduce: $(STAMP)
 	$(BIN)/jaxbal reproduce --out results

@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.dynamics import inverse_dynamics
+from jaxbal._src.momentum import checked_finite
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Coordinates, Float, Vec3
 
@@ -50,6 +51,11 @@ def actuator_torques(
 
     Minimum-norm over the actuators when they are redundant (see the module doc).
     One sample; batch with ``jax.vmap``.
+
+    Raises:
+        ValueError: the checks of :func:`jaxbal.inverse_dynamics`, and torques that are
+            not finite (a singular configuration of a parallel robot); eagerly, or at
+            run time under ``jit``.
     """
     forces = inverse_dynamics(robot, q, qd, qdd, gravity)
     actuated = np.asarray(robot.actuated)
@@ -57,4 +63,5 @@ def actuator_torques(
         return forces[actuated]
     basis = velocity_basis(robot, q)
     a = basis[actuated].T  # (m, a)
-    return a.T @ jnp.linalg.solve(a @ a.T, basis.T @ forces)
+    torques = a.T @ jnp.linalg.solve(a @ a.T, basis.T @ forces)
+    return checked_finite("actuator torques", robot, torques)

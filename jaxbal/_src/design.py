@@ -282,7 +282,8 @@ def codesign(
     Raises:
         ValueError: an unknown metric or design-variable name (the message lists the
             valid ones), an empty ``free``, a non-finite start or bound, a start
-            outside the bounds, or a motion of the wrong shape.
+            outside the bounds, a negative budget of a named metric, a negative or
+            non-finite ``penalty``, ``max_steps < 1``, or a motion of the wrong shape.
     """
     motion = as_motion(motions)
     if motion.q.ndim != 2 or motion.q.shape[1] != robot.dof:
@@ -295,6 +296,18 @@ def codesign(
     bounds = np.array([float(b) for b in constraints.values()])
     if not np.all(np.isfinite(bounds)):
         raise ValueError(f"constraint bounds must be finite, got {constraints}")
+    # Every named metric is >= 0 (norms, masses): a negative budget cannot be met and
+    # was silently returned as feasible=False after a full optimisation.
+    for metric, bound in zip(constrained, bounds, strict=True):
+        if isinstance(metric, str) and bound < 0:
+            raise ValueError(
+                f"constraints[{metric!r}] = {bound!r} is negative: the metric is >= 0, "
+                "so the budget cannot be met"
+            )
+    if not (np.isfinite(float(penalty)) and float(penalty) >= 0):
+        raise ValueError(f"penalty must be finite and >= 0, got {penalty!r}")
+    if not (isinstance(max_steps, int | np.integer) and max_steps >= 1):
+        raise ValueError(f"max_steps must be an integer >= 1, got {max_steps!r}")
 
     design = robot.design()
     if free is None:

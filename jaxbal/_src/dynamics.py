@@ -20,7 +20,14 @@ import jax
 import jax.numpy as jnp
 
 from jaxbal._src.linalg import matvec, rmatvec
-from jaxbal._src.momentum import body_com_positions, body_velocities
+from jaxbal._src.momentum import (
+    body_com_positions,
+    body_velocities,
+    checked_bodies,
+    checked_finite,
+    checked_parameters,
+    checked_state,
+)
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Coordinates, Float, Scalar, Vec3
 
@@ -58,10 +65,17 @@ def inverse_dynamics(
     """Generalised forces ``τ`` (``(dof,)``, N·m for revolute, N for prismatic) that
     drive the robot along ``(q, q̇, q̈)``; valid when ``q`` are independent coordinates.
 
+    Raises:
+        ValueError: as :func:`jaxbal.shaking_wrench` (wrong state shapes at trace
+            time; eagerly a non-finite state, a negative/non-finite body mass or
+            inertia, a non-finite robot parameter or an overflow; under ``jit`` the same
+            value checks at run time). Before, such robots gave silent NaN or wrong
+            torques under ``jit``.
+
     References:
         Lagrange's equations of the second kind; Khalil & Dombre (2002).
     """
-    q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
+    q, qd, qdd = checked_state(robot, q, qd, qdd)
 
     def momentum_gen(q_, qd_):
         return jax.grad(kinetic_energy, argnums=2)(robot, q_, qd_)
@@ -70,7 +84,8 @@ def inverse_dynamics(
     tau = dmomentum_dt - jax.grad(kinetic_energy, argnums=1)(robot, q, qd)
     if gravity is not None:
         tau = tau + jax.grad(potential_energy, argnums=1)(robot, q, gravity)
-    return tau
+    tau = checked_parameters(robot, checked_bodies(robot, tau))
+    return checked_finite("generalised forces", robot, tau)
 
 
 def inverse_dynamics_rate(

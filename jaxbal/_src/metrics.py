@@ -43,13 +43,19 @@ import numpy as np
 from jaxbal._src.actuation import actuator_torques
 from jaxbal._src.callables import as_pytree
 from jaxbal._src.linalg import matvec
-from jaxbal._src.momentum import body_com_poses, shaking_wrench
+from jaxbal._src.momentum import (
+    body_com_poses,
+    checked_bodies,
+    checked_finite,
+    checked_parameters,
+    shaking_wrench,
+)
 from jaxbal._src.motion import state_valid
 from jaxbal._src.planning import peak_norm
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import sample
 from jaxbal._src.types import Array, Float, Scalar
-from jaxbal._src.validation import raise_if_invalid
+from jaxbal._src.validation import guard, is_traced, raise_if_invalid, runtime_checks
 
 __all__ = [
     "ADDED_MASS_VARIABLES",
@@ -162,19 +168,47 @@ def as_motion(motions) -> Motion:
 # --- metrics -----------------------------------------------------------------------------
 
 
+def _batched(evaluate, robot: Robot, motion: Motion, what: str):
+    """``evaluate(robot, q, qd, qdd)`` at every sample of the motion (``vmap``).
+
+    An eager call checks the values first and raises ``ValueError``: inside ``vmap`` the
+    runtime checks would surface as a JAX-internal callback error (``INTERNAL:
+    CpuCallback error``) instead of naming the offending value.
+    """
+    motion = as_motion(motion)
+    if is_traced(robot, motion):
+        return jax.vmap(lambda q, qd, qdd: evaluate(robot, q, qd, qdd))(*motion)
+    checked_parameters(robot, checked_bodies(robot, None))
+    finite = jnp.all(jnp.isfinite(jnp.concatenate(motion, axis=-1)), axis=-1)
+    raise_if_invalid(finite, "non-finite state (q, qd, qdd) in the motion at samples",
+                     jnp.arange(finite.shape[0]))  # fmt: skip
+    with runtime_checks(False):  # checked above and below, eagerly
+        out = jax.vmap(lambda q, qd, qdd: evaluate(robot, q, qd, qdd))(*motion)
+    return checked_finite(what, robot, out)
+
+
 def _wrench(robot: Robot, motion: Motion):
-    return jax.vmap(lambda q, qd, qdd: shaking_wrench(robot, q, qd, qdd))(*motion)
+    return _batched(shaking_wrench, robot, motion, "shaking wrench")
 
 
 def _torques(robot: Robot, motion: Motion):
-    return jax.vmap(lambda q, qd, qdd: actuator_torques(robot, q, qd, qdd))(*motion)
+    return _batched(actuator_torques, robot, motion, "actuator torques")
+
+
+def _unit_scale(vectors):
+    """``max |v|`` when the squares of ``vectors`` would overflow (> 1e150), else 1 (exact:
+    the usual values are unchanged); no gradient."""
+    big = jax.lax.stop_gradient(jnp.max(jnp.abs(vectors), initial=0.0))
+    return jnp.where(big > 1e150, big, 1.0)
 
 
 def _rms(vectors: Float[Array, "t k"]) -> Scalar:
-    """``sqrt(mean_t ‖v(t)‖²)``, with a zero (not NaN) gradient at ``v ≡ 0``."""
-    mean_square = jnp.mean(jnp.sum(vectors**2, axis=-1))
+    """``sqrt(mean_t ‖v(t)‖²)``, with a zero (not NaN) gradient at ``v ≡ 0``; scaled so
+    that a finite wrench above 1e154 N does not overflow to inf."""
+    scale = _unit_scale(vectors)
+    mean_square = jnp.mean(jnp.sum((vectors / scale) ** 2, axis=-1))
     positive = mean_square > 0.0
-    return jnp.where(positive, jnp.sqrt(jnp.where(positive, mean_square, 1.0)), 0.0)
+    return scale * jnp.where(positive, jnp.sqrt(jnp.where(positive, mean_square, 1.0)), 0.0)
 
 
 def peak_force(robot: Robot, motion: Motion) -> Scalar:
@@ -212,20 +246,35 @@ def added_mass(robot: Robot, motion: Motion | None = None) -> Scalar:
     and ``vertical_counterweight`` (those the robot has; zero if none). ``motion`` is
     ignored (kept for the metric signature)."""
     design = robot.design()
-    terms = [jnp.sum(design[name]) for name in ADDED_MASS_VARIABLES if name in design]
-    return sum(terms, jnp.zeros(()))
+    names = [name for name in ADDED_MASS_VARIABLES if name in design]
+    terms = [jnp.sum(design[name]) for name in names]
+    total = sum(terms, jnp.zeros(()))
+    if not names:
+        return total
+    # A NaN or negative counter-mass set with eqx.tree_at gave a NaN / negative
+    # added mass silently: refused (eagerly ValueError naming it, at run time under jit).
+    invalid = jnp.stack([~jnp.all(jnp.isfinite(design[n]) & (design[n] >= 0)) for n in names])
+    message = "added-mass design variables must be finite and >= 0 [kg]"
+    offending = jnp.stack([jnp.min(jnp.asarray(design[n])) for n in names])
+    return guard(total, invalid, message, offending, names=names)
 
 
 def base_inertia(robot: Robot, q: Float[Array, " dof"]) -> Scalar:
     """Moment of inertia of all moving bodies about the base z axis at ``q`` [kg·m²]:
-    ``J_z = Σ_i m_i (x_i² + y_i²) + (R_i I_i R_iᵀ)_zz`` (``(x_i, y_i)``: COM of body i)."""
+    ``J_z = Σ_i m_i (x_i² + y_i²) + (R_i I_i R_iᵀ)_zz`` (``(x_i, y_i)``: COM of body i).
+
+    Raises ``ValueError`` (at run time under ``jit``) as :func:`jaxbal.center_of_mass`."""
+    q = jnp.asarray(q, dtype=float)
     bodies = robot.mass_properties()
     positions, rotations = body_com_poses(robot, q)
     # (R I Rᵀ)_zz = e_zᵀ R I Rᵀ e_z = rᵀ I r with r = Rᵀ e_z, the third row of R.
     row_z = rotations[:, 2, :]
     spin = jnp.sum(row_z * matvec(bodies.inertia, row_z), axis=-1)
     orbital = bodies.mass * jnp.sum(positions[:, :2] ** 2, axis=-1)
-    return jnp.sum(orbital + spin)
+    # Checked like the shaking wrench (a NaN length or mass gave a NaN added inertia).
+    inertia = guard(jnp.sum(orbital + spin), ~jnp.isfinite(q), "non-finite coordinates q", q)
+    inertia = checked_parameters(robot, checked_bodies(robot, inertia))
+    return checked_finite("base inertia", robot, inertia)
 
 
 def added_inertia(robot: Robot, motion: Motion) -> Scalar:

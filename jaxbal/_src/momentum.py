@@ -17,15 +17,17 @@ References:
 
 from __future__ import annotations
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxbal._src.linalg import cross, matmul_transposed, matvec, rmatvec, vee, weighted_sum
 from jaxbal._src.planar import PlanarRobot, planar_inertial_wrench
 from jaxbal._src.robot import Robot
 from jaxbal._src.straight_line import straight_line
-from jaxbal._src.types import Coordinates, Points, Rotations, Scalar, Vec3
-from jaxbal._src.validation import check_shape, guard, runtime_checks_enabled
+from jaxbal._src.types import Array, Coordinates, Points, Rotations, Scalar, Vec3
+from jaxbal._src.validation import check_shape, guard, is_traced, runtime_checks_enabled
 
 #: Tolerance of the sign checks [kg, kg·m²]: derived masses and inertias that are zero
 #: up to rounding (e.g. ``I + m p² − m p²``) are accepted.
@@ -46,16 +48,63 @@ def checked_bodies(robot: Robot, value):
     """``value``, guarded by the robot's mass properties as the physics sees them: every
     body mass and inertia diagonal finite and ≥ 0 (derived masses included, e.g. the
     DUAL-V's brass counter-mass ``m_cm − m_tun``), to :data:`ROUNDING` (a derived
-    quantity that is zero up to rounding passes)."""
+    quantity that is zero up to rounding passes). A robot whose class sets
+    ``signed_inertias = True`` (an exact equivalent model, e.g. the DUAL-V's split model
+    with residual inertias ``I − m·p·(l − p)``) is checked for finite inertias only."""
     bodies = robot.mass_properties()
     diagonal = jnp.diagonal(bodies.inertia, axis1=-2, axis2=-1)
     bad_mass = ~(jnp.isfinite(bodies.mass) & (bodies.mass >= -ROUNDING))
     finite = jnp.all(jnp.isfinite(bodies.inertia), axis=(-2, -1))
-    bad_inertia = ~finite | jnp.any(diagonal < -ROUNDING, -1)
+    signed = getattr(type(robot), "signed_inertias", False)
+    bad_inertia = ~finite if signed else ~finite | jnp.any(diagonal < -ROUNDING, -1)
     message = "body masses must be finite and >= 0 [kg]"
     value = guard(value, bad_mass, message, bodies.mass, bodies.names)
     message = "body inertias must be finite with diagonal >= 0 [kg m^2]"
     return guard(value, bad_inertia, message, diagonal, bodies.names)
+
+
+def _parameters(robot: Robot) -> list[tuple[str, Array]]:
+    """``(name, leaf)`` of every floating-point array leaf of the robot (its lengths,
+    masses, inertias, ...), named ``Class.field``."""
+    flat, _ = jax.tree_util.tree_flatten_with_path(robot)
+    prefix = type(robot).__name__
+    return [(prefix + jax.tree_util.keystr(p), x) for p, x in flat if eqx.is_inexact_array(x)]
+
+
+def checked_parameters(robot: Robot, value):
+    """``value``, guarded by every floating-point parameter of the robot being finite.
+
+    The body checks (:func:`checked_bodies`) see masses and inertias only; a NaN length
+    set with ``eqx.tree_at`` gave a silent NaN wrench, centre of mass or torque. Eagerly
+    a ``ValueError`` naming the parameters (``PlanarArm.lengths``); under ``jit`` a
+    runtime error (:func:`jaxbal.set_runtime_checks`).
+    """
+    parameters = _parameters(robot)
+    if not parameters:
+        return value
+    message = "robot parameters must be finite"
+    if not is_traced([x for _, x in parameters]):
+        bad = {n: np.asarray(x).tolist() for n, x in parameters if not np.all(np.isfinite(x))}
+        if bad:
+            raise ValueError(f"{message}: {bad}")
+        return value
+    invalid = jnp.stack([~jnp.all(jnp.isfinite(x)) for _, x in parameters])
+    return guard(value, invalid, message, invalid)
+
+
+def checked_finite(what: str, robot: Robot, value):
+    """``value`` (a pytree of arrays), guarded by being finite: the result of finite
+    inputs overflows when a parameter or the state is too large (a 1e300 m link).
+    Eagerly the ``ValueError`` names the largest robot parameter."""
+    leaves = jax.tree_util.tree_leaves(value)
+    invalid = ~jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in leaves]))
+    message = f"{what} is not finite (overflow: robot parameters or state too large)"
+    if not is_traced(invalid, leaves) and bool(invalid):
+        parameters = [(n, np.max(np.abs(x), initial=0.0)) for n, x in _parameters(robot)]
+        if parameters:
+            name, size = max(parameters, key=lambda item: item[1])
+            message += f"; largest robot parameter: {name} with |x| = {size:.3g}"
+    return guard(value, invalid, message, jnp.concatenate([jnp.ravel(x) for x in leaves]))
 
 
 def total_mass(robot: Robot) -> Scalar:
@@ -91,11 +140,22 @@ def center_of_mass(robot: Robot, q: Coordinates) -> Vec3:
 
     References:
         Briot et al. (2012), eq (7).
+
+    Raises:
+        ValueError: eagerly, a non-finite ``q``, a negative or non-finite body mass or
+            inertia, a non-finite robot parameter (a robot changed with ``eqx.tree_at``
+            included), or an overflow; under ``jit`` a runtime error
+            (:func:`jaxbal.set_runtime_checks`). Before, these gave a silent NaN or a
+            wrong centre of mass (negative masses).
     """
+    q = jnp.asarray(q, dtype=float)
     bodies = robot.mass_properties()
     positions = body_com_positions(robot, q)
     mass = jnp.sum(bodies.mass)
-    return weighted_sum(bodies.mass, positions) / jnp.maximum(mass, 1e-300)
+    com = weighted_sum(bodies.mass, positions) / jnp.maximum(mass, 1e-300)
+    com = guard(com, ~jnp.isfinite(q), "non-finite coordinates q", q)
+    com = checked_parameters(robot, checked_bodies(robot, com))
+    return checked_finite("centre of mass", robot, com)
 
 
 def momentum(robot: Robot, q: Coordinates, qd: Coordinates) -> tuple[Vec3, Vec3]:
@@ -154,7 +214,8 @@ def shaking_wrench(
     Raises:
         ValueError: a wrong shape of ``q``, ``qd``, ``qdd`` or ``gravity`` (at trace
             time); eagerly, a non-finite state or a negative/non-finite body mass or
-            inertia (a robot changed with ``eqx.tree_at`` included). Under ``jit`` the
+            inertia (a robot changed with ``eqx.tree_at`` included), a non-finite robot
+            parameter (e.g. a NaN length) or an overflow to inf. Under ``jit`` the
             same value checks raise at run time (:func:`jaxbal.set_runtime_checks`).
 
     Performance: under ``jit``/``vmap``/``grad`` the evaluation is replayed as
@@ -173,7 +234,9 @@ def _shaking_wrench(robot: Robot, q, qd, qdd, gravity):
         force, moment = planar_inertial_wrench(robot, q, qd, qdd)
     else:
         force, moment = inertial_wrench(robot, q, qd, qdd)
-    force = checked_bodies(robot, force)
+    # Both outputs guarded: a check on the force alone was dropped from compiled code
+    # that uses only the moment (peak_moment of a NaN-inertia robot was finite).
+    force, moment = checked_parameters(robot, checked_bodies(robot, (force, moment)))
     if gravity is not None:
         g = jnp.asarray(gravity, dtype=float)
         check_shape("gravity", g, (3,))
@@ -183,7 +246,7 @@ def _shaking_wrench(robot: Robot, q, qd, qdd, gravity):
         moment = moment + weighted_sum(
             bodies.mass, cross(positions, jnp.broadcast_to(g, positions.shape))
         )
-    return force, moment
+    return checked_finite("shaking wrench", robot, (force, moment))
 
 
 _straight_wrench = straight_line(_shaking_wrench, context=runtime_checks_enabled)

@@ -34,6 +34,7 @@ from jaxbal._src.profiles import Profile
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import StraightLine, sample
 from jaxbal._src.types import Array, Float, ScalarLike
+from jaxbal._src.validation import check_shape, raise_if_invalid
 
 
 class EndEffectorLine(eqx.Module):
@@ -111,9 +112,19 @@ def com_line(
     beyond ``dims`` (φ of the 3R, θ5 of the DUAL-V, φ and z of the SCARA) follow the
     straight line between the end-effector poses of ``q_start`` and ``q_end``, unless
     ``free`` is given.
+
+    Raises:
+        ValueError: ``q_start``/``q_end`` of the wrong shape or (eagerly) not finite, a
+            ``duration`` that is (eagerly) not finite and > 0; the plan is checked again
+            where it is evaluated (under ``jit`` too).
     """
     dims = robot.com_dims if dims is None else dims
     q_start, q_end = (jnp.asarray(q, dtype=float) for q in (q_start, q_end))
+    for name, q in (("q_start", q_start), ("q_end", q_end)):
+        check_shape(name, q, (robot.dof,))
+        raise_if_invalid(jnp.all(jnp.isfinite(q)), f"{name} must be finite", q)
+    positive = jnp.isfinite(jnp.asarray(duration, float)) & (jnp.asarray(duration, float) > 0)
+    raise_if_invalid(positive, "duration must be finite and > 0 [s]", duration)
     start = center_of_mass(robot, q_start)[:dims]
     end = center_of_mass(robot, q_end)[:dims]
     poses = StraightLine(robot.end_effector(q_start), robot.end_effector(q_end), profile, duration)
@@ -159,13 +170,17 @@ def peak_norm(vectors: Float[Array, "t 3"]) -> Float[Array, ""]:
 
     Differentiable everywhere: the norm uses the double-``where`` trick so that an
     instant with ``v = 0`` (rest at the ends of a move) gives a zero, not NaN, gradient.
+    Vectors above 1e150 are scaled first, so that a finite force of 1e200 N does not
+    overflow to inf in its square (values below are computed exactly as before).
     """
     if jnp.ndim(vectors) != 2 or jnp.shape(vectors)[0] == 0:
         raise ValueError(f"vectors must have shape (t, k) with t >= 1, got {jnp.shape(vectors)}")
-    squared = jnp.sum(vectors**2, axis=-1)
+    big = jax.lax.stop_gradient(jnp.max(jnp.abs(vectors)))
+    scale = jnp.where(big > 1e150, big, 1.0)
+    squared = jnp.sum((vectors / scale) ** 2, axis=-1)
     positive = squared > 0.0
     norms = jnp.where(positive, jnp.sqrt(jnp.where(positive, squared, 1.0)), 0.0)
-    return jnp.max(norms)
+    return scale * jnp.max(norms)
 
 
 def smooth_peak(values: Float[Array, " t"], temperature: ScalarLike) -> Float[Array, ""]:

@@ -33,6 +33,18 @@ def _ramp_power(x, power: int):
     return jnp.where(positive, safe**power / factorial, 0.0)
 
 
+def _checked_time(profile, u, value):
+    """``value = s(u)``, guarded by a finite ``u`` and a finite ``s(u)``: a NaN time gave a
+    silent NaN, and a time far outside [0, 1] (u = 1e300) overflowed to inf. Eagerly a
+    ``ValueError`` naming ``u``; under ``jit`` a runtime error."""
+    invalid = ~(jnp.isfinite(u) & jnp.isfinite(value))
+    message = (
+        f"{type(profile).__name__} profile: u must be finite and s(u) finite "
+        "(normalised time u = t/T, far outside [0, 1] the polynomial overflows)"
+    )
+    return guard(value, invalid, message, u)
+
+
 class Profile(eqx.Module):
     """Base class: ``profile(u)`` returns ``s(u)``, dimensionless."""
 
@@ -46,7 +58,7 @@ class Quintic(Profile):
 
     def __call__(self, u):
         u = jnp.asarray(u, dtype=float)
-        return u**3 * (10.0 - 15.0 * u + 6.0 * u**2)
+        return _checked_time(self, u, u**3 * (10.0 - 15.0 * u + 6.0 * u**2))
 
 
 class BangBang(Profile):
@@ -57,7 +69,7 @@ class BangBang(Profile):
 
     def __call__(self, u):
         u = jnp.asarray(u, dtype=float)
-        return 4.0 * (_ramp_power(u, 2) - 2.0 * _ramp_power(u - 0.5, 2))
+        return _checked_time(self, u, 4.0 * (_ramp_power(u, 2) - 2.0 * _ramp_power(u - 0.5, 2)))
 
 
 class TrapezoidalAcceleration(Profile):
@@ -92,7 +104,8 @@ class TrapezoidalAcceleration(Profile):
 
     def __call__(self, u):
         u = jnp.asarray(u, dtype=float)
-        return self._checked(self._shape(u) / self._shape(jnp.asarray(1.0)))
+        value = self._checked(self._shape(u) / self._shape(jnp.asarray(1.0)))
+        return _checked_time(self, u, value)
 
     def _checked(self, value):
         """``value``, guarded by ``0 < u1 ≤ u2 < 1/2`` (finite) where the profile is used."""
@@ -130,7 +143,13 @@ class BoundaryPolynomial(Profile):
         u = jnp.asarray(u, dtype=float)
         # Horner's scheme: no u**0 whose derivative at u = 0 would be 0·∞ = NaN.
         bump = (u * (1.0 - u)) ** 3 * jnp.polyval(self.coefficients[::-1], u)
-        return Quintic()(u) + bump
+        value = guard(
+            Quintic()(u) + bump,
+            ~jnp.all(jnp.isfinite(self.coefficients)),
+            "BoundaryPolynomial coefficients must be finite",
+            self.coefficients,
+        )
+        return _checked_time(self, u, value)
 
 
 def polynomial_of_degree(degree: int) -> BoundaryPolynomial:

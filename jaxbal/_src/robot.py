@@ -171,7 +171,8 @@ class Robot(eqx.Module):
         """Normalise a ``branch`` argument to a tuple of :attr:`branch_size` signs ±1.
 
         Raises:
-            ValueError: a sign other than ±1 or a tuple of the wrong length.
+            ValueError: a sign other than ±1 (strings and booleans included, also inside
+                a tuple) or a tuple of the wrong length.
         """
         if branch is None:
             return self.default_branch
@@ -180,6 +181,8 @@ class Robot(eqx.Module):
         try:
             signs = tuple(int(s) for s in branch)
             exact = all(float(s) == int(s) for s in branch) and not isinstance(branch, str)
+            # ("1",) or (True,) are not signs (int() would accept them silently).
+            exact = exact and not any(isinstance(s, str | bool | np.bool_) for s in branch)
         except (TypeError, ValueError) as error:
             raise ValueError(f"branch must be ±1 or a tuple of ±1 signs, got {branch!r}") from error
         if not exact or len(signs) != self.branch_size or any(s not in (1, -1) for s in signs):

@@ -265,7 +265,8 @@ class DualV(PlanarRobot):
             branch: four elbow signs ``σ_i = sign sin(θ_i2 - θ_i1)`` (``OUTWARD``, the
                 default, ``CROSSED`` or any tuple of ±1).
             return_valid: return ``(q, valid)``, a boolean mask (all arms reach their
-                joint), instead of raising; ``q`` is then clipped to the boundary.
+                joint), instead of raising; ``q`` is then clipped to the boundary (for
+                a non-finite pose: the coordinates of the centred pose ``(0, 0, 0)``).
 
         Returns:
             ``q`` ``(11,)`` (and the mask). Batch with ``jax.vmap``.
@@ -274,21 +275,21 @@ class DualV(PlanarRobot):
             ValueError: eagerly, when the pose is outside the workspace (unless
                 ``return_valid``).
         """
-        pose = jnp.asarray(pose, dtype=float)
+        pose = pose_given = jnp.asarray(pose, dtype=float)
         check_shape("pose", pose, (3,))
         sigma = jnp.asarray(self.branch(branch), dtype=float)
+        finite = jnp.all(jnp.isfinite(pose))
+        # A non-finite pose is invalid; solve the centred pose instead so q stays finite
+        # (a NaN pose gave NaN coordinates with return_valid=True, against the contract).
+        pose = jnp.where(finite, pose, 0.0)
         reach = self.platform_joints(pose) - self.base_pivots()
         distance2 = jnp.sum(reach**2, -1)
         distance = jnp.sqrt(jnp.maximum(distance2, 1e-24))
         cos_alpha = (self.l1**2 + distance2 - self.l2**2) / (2.0 * self.l1 * distance)
-        valid = (
-            jnp.all(jnp.abs(cos_alpha) <= 1.0)
-            & jnp.all(distance2 > 1e-20)
-            & jnp.all(jnp.isfinite(pose))
-        )
+        valid = jnp.all(jnp.abs(cos_alpha) <= 1.0) & jnp.all(distance2 > 1e-20) & finite
         cos_alpha = jnp.where(jnp.isfinite(cos_alpha), cos_alpha, 0.0)
         if not return_valid:
-            raise_if_invalid(valid, "DUAL-V platform pose outside the workspace", pose)
+            raise_if_invalid(valid, "DUAL-V platform pose outside the workspace", pose_given)
         alpha = jnp.arccos(jnp.clip(cos_alpha, -1.0 + 1e-15, 1.0 - 1e-15))
         theta1 = wrap(jnp.arctan2(reach[:, 1], reach[:, 0]) - sigma * alpha)
         to_end = reach - self.l1[:, None] * unit(theta1)

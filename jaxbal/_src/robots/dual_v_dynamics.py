@@ -32,7 +32,7 @@ References:
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import ClassVar, NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -144,6 +144,8 @@ class SplitModel(Robot):
     """
 
     robot: DualV
+    #: the residual inertias of the exact split may be negative (checked finite only).
+    signed_inertias: ClassVar[bool] = True
 
     @property
     def dof(self) -> int:

@@ -243,7 +243,8 @@ class Orthoglide(Robot):
             return_valid: return ``(q, valid)`` (all radicands > 0) and never raise.
 
         Returns:
-            ``q (6,)`` [m] (and ``valid``).
+            ``q (6,)`` [m] (and ``valid``; where it is False, ``q`` is the home
+            configuration ``p = 0``, finite).
 
         Raises:
             ValueError: eagerly, when ``p`` is out of reach of a leg (‖p_⊥‖ ≥ L).
@@ -254,7 +255,10 @@ class Orthoglide(Robot):
         radicand = self._radicands(p)
         valid = jnp.all(radicand > 0.0) & jnp.all(jnp.isfinite(p))
         if not return_valid:
-            raise_if_invalid(valid, "platform point out of reach of the Orthoglide legs", p)
+            raise_if_invalid(valid, "platform point (pose) out of reach of the Orthoglide legs", p)
+        # an invalid point gives the home configuration p = 0, so q stays finite
+        p = jnp.where(valid, p, 0.0)
+        radicand = jnp.where(valid, radicand, self.length**2)
         rho = p + signs * jnp.sqrt(jnp.maximum(radicand, 1e-30))
         q = jnp.concatenate([rho, p])
         return (q, valid) if return_valid else q

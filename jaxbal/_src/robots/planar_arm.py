@@ -204,7 +204,9 @@ class PlanarArm(PlanarRobot):
             raise_if_invalid(valid, "end-effector pose outside the workspace", pose_given)
         q = jnp.stack([wrap(q1), q2])
         if n == 3:
-            q = jnp.concatenate([q, wrap(pose[2] - q1 - q2)[None]])
+            # φ wrapped first: φ − q1 − q2 would lose q1 + q2 to rounding for a large φ
+            # (φ = 1e10 rad put the tip 4e-8 m off, φ = 1e300 rad 0.15 m, valid True).
+            q = jnp.concatenate([q, wrap(wrap(pose[2]) - q1 - q2)[None]])
         return (q, valid) if return_valid else q
 
     def com_inverse_kinematics(

@@ -204,13 +204,17 @@ class Scara(Robot):
         Raises:
             ValueError: eagerly, naming the pose, when (x, y) is out of reach.
         """
-        pose = jnp.asarray(pose, dtype=float)
+        pose = pose_given = jnp.asarray(pose, dtype=float)
         check_shape("pose", pose, (4,))
         (mode,) = self.branch(branch)
+        finite = jnp.all(jnp.isfinite(pose))
+        # A non-finite pose is invalid; solve a finite stand-in so q stays finite (a NaN
+        # pose gave NaN joints with return_valid=True, against the contract).
+        pose = jnp.where(finite, pose, jnp.zeros_like(pose).at[0].set(self.lengths[0]))
         q1, q2, valid = two_link_ik(pose[:2], self.lengths[0], self.lengths[1], mode)
-        valid = valid & jnp.all(jnp.isfinite(pose))
+        valid = valid & finite
         if not return_valid:
-            raise_if_invalid(valid, "SCARA end-effector pose out of reach (x, y, φ, z)", pose)
+            raise_if_invalid(valid, "SCARA end-effector pose out of reach (x, y, φ, z)", pose_given)
         q = jnp.stack([q1, q2, pose[2] - q1 - q2, pose[3]])
         return (q, valid) if return_valid else q
 
