@@ -41,10 +41,7 @@ STYLES = {f"case{k + 1}": {"color": "k", "linestyle": s} for k, s in enumerate((
 FIG4 = ("|F_sh| [N]", "|M_sh| about c [N·m]")
 SWEEP_AXES = {"xlabel": "Δm [kg]", "figsize": (10, 3.5), "legend": {"title": "nominal payload"}}
 MJX_TITLE = ": max relative difference jaxbal vs MJX (closed chain, tol. 1e-6; moments about O)"
-SENSITIVITY_PANELS = (
-    (0, "F case 4 − case 3 [N]", "force"),
-    (2, "M case 4 − case 3 [N·m]", "moment"),
-)
+SENSITIVITY_PANELS = (("F case 4 − case 3 [N]", "force"), ("M case 4 − case 3 [N·m]", "moment"))
 COM_PAYLOAD = 2.0  # kg: the payload for which §3's COM coordinates are reproduced
 PAPER_TABLE3 = {  # §3.3, payloads 1-5 kg (+ Δm)
     "case3": (157.73, 223.60, 289.49, 355.40, 421.32),
@@ -158,14 +155,16 @@ def run(ctx) -> Result:
             ("moment [N·m]", "N*m", PAPER_TABLE4, {}),
         ))
     )  # fmt: skip
+    # a jaxbal.sweep over payload × payload_error [kg]: case 4 − case 3 per nominal payload
     sweep = og.payload_error_peaks(robot, nominal, DELTA_SWEEP, *move, reference, SAMPLES)
-    labels = [f"{payload:g} kg" for payload in PAYLOADS[1:]]
-    panels = [  # case 4 − case 3 for each nominal payload
-        (ylabel, dict(zip(labels, sweep[:, :, k + 1] - sweep[:, :, k], strict=True)), title)
-        for k, ylabel, title in SENSITIVITY_PANELS
-    ]
+    panels = []
+    for ylabel, quantity in SENSITIVITY_PANELS:
+        gap = sweep.sel(peak=f"{quantity}_case4") - sweep.sel(peak=f"{quantity}_case3")
+        curves = {f"{m:g} kg": gap.sel(payload=m).values for m in gap["payload"].values}
+        panels.append((ylabel, curves, quantity))
     path = ctx.figure_path("geng2021_sensitivity_orthoglide")
-    figures.append(plot_histories(path, DELTA_SWEEP, panels, None, **SWEEP_AXES))
+    deltas = sweep["payload_error"].values
+    figures.append(plot_histories(path, deltas, panels, None, **SWEEP_AXES))
     a_com = {entry.row: entry.value for entry in kin.entries}["a_com"]
     notes = NOTES.format(
         a_com=a_com, l=SLIDER_OFFSET, c=MOMENT_REFERENCE, dm=delta_m, dm_implied=float(implied)

@@ -154,10 +154,9 @@ def run(ctx):
     add("sensitivity", "-∂F_x/∂payload / ẍ5", eq30.payload, "-", paper=1.0)
     add("sensitivity", "payload equivalent to removing m_tun", eq30.tuning_equivalent, "kg",
         paper=0.107)  # fmt: skip
-    fractions, payloads = np.linspace(0.9, 1.05, 31), np.linspace(0.0, 0.3, 31)
-    states = studies.joint_states(robot, motion)
-    save(plots.plot_sweeps(fractions, balancing.balance_sweep(robot, states, fractions), payloads,
-                           balancing.payload_sweep(robot, states, payloads)),
+    states = studies.joint_states(robot, motion)  # eq (30) on jaxbal.sweep axes (labelled)
+    save(plots.plot_sweeps(balancing.balance_sweep(robot, states, np.linspace(0.9, 1.05, 31)),
+                           balancing.payload_sweep(robot, states, np.linspace(0.0, 0.3, 31))),
          "dualv_sensitivity")  # fmt: skip
 
     ctx.progress("co-design")

@@ -19,6 +19,7 @@ from jaxbal.robots.dual_v_balancing import (
     balance_sweep,
     payload_sweep,
     reduced_mass,
+    with_balance_fraction,
 )
 from jaxbal.robots.dual_v_dynamics import MotionSample
 
@@ -154,20 +155,29 @@ def test_eq30_sensitivity_closed_form():
 
 def test_sweeps_follow_the_reduced_mass():
     """max|F_x| on a move along x = |m_red + payload|·max|ẍ|, with m_red = 2(1 - f)μ*/l
-    for a counter-mass moment f·μ* (closed form, eq 30; rtol 1e-9)."""
+    for a counter-mass moment f·μ* (closed form, eq 30; rtol 1e-9). The sweeps are
+    labelled (jaxbal.sweep): dimension, coordinates and units."""
     robot = dual_v()
     motion = studies.orthogonal_motion(0, 51.0, 0.2, 11)
     acc = float(jnp.max(jnp.abs(motion[2][:, 0])))
     payloads = np.array([0.0, 0.1, 0.3])
     expected = (float(reduced_mass(robot)) + payloads) * acc
-    np.testing.assert_allclose(
-        payload_sweep(robot, studies.joint_states(robot, motion), payloads), expected, rtol=1e-9
-    )
+    got = payload_sweep(robot, studies.joint_states(robot, motion), payloads)
+    assert got.dims == ("payload",) and got.attrs["units"] == "N"
+    assert got["payload"].attrs["units"] == "kg"
+    np.testing.assert_array_equal(got["payload"].values, payloads)
+    np.testing.assert_allclose(got.values, expected, rtol=1e-9)
     fractions = np.array([0.9, 0.9672, 1.05])
     mu = float(balance_condition_eq2(robot)[0])
     expected = np.abs(2 * (1 - fractions) * mu / 0.28) * acc
     got = balance_sweep(robot, studies.joint_states(robot, motion), fractions)
-    np.testing.assert_allclose(got, expected, rtol=1e-9)
+    assert got.dims == ("balance_fraction",) and got.name == "peak_force_x"
+    np.testing.assert_array_equal(got["balance_fraction"].values, fractions)
+    np.testing.assert_allclose(got.values, expected, rtol=1e-9)
+    moved = with_balance_fraction(robot, 0.9672)  # m_cm scaled, p_cm kept
+    np.testing.assert_array_equal(moved.p_cm, robot.p_cm)
+    required = 0.9672 * balance_condition_eq2(robot)
+    np.testing.assert_allclose(moved.m_cm * moved.p_cm, required, rtol=1e-15)
 
 
 def test_balance_line_offsets():

@@ -129,7 +129,15 @@ def test_payload_error_slopes_match_finite_differences_and_shapes():
     slopes = og.payload_error_slopes(robot, payloads, jnp.asarray(delta), *MOVE, None, SAMPLES)
     deltas = jnp.array([delta - h, delta + h, 0.0])
     grid = og.payload_error_peaks(robot, payloads, deltas, *MOVE, None, SAMPLES)
-    assert grid.shape == (1, 3, 4)
+    assert grid.shape == (1, 3, 4)  # a labelled jaxbal.sweep: payload × payload_error × peak
+    assert grid.dims == ("payload", "payload_error", "peak")
+    np.testing.assert_array_equal(grid["payload_error"].values, deltas)
+    peaks = [f"{q}_case{k}" for q in ("force", "moment") for k in (3, 4)]
+    assert list(grid["peak"].values) == peaks
+    assert list(grid["units"].values) == ["N", "N", "N·m", "N·m"]
+    at_zero = og.payload_error_peaks(robot, payloads, jnp.asarray(0.0), *MOVE, None, SAMPLES)
+    assert at_zero.dims == ("payload", "peak") and float(at_zero["payload_error"]) == 0.0
+    np.testing.assert_allclose(at_zero, grid[:, 2], rtol=1e-12)
     np.testing.assert_allclose(slopes, (grid[:, 1] - grid[:, 0]) / (2 * h), rtol=1e-6, atol=1e-8)
     np.testing.assert_allclose(grid[:, 2, 0], grid[:, 2, 1], rtol=1e-12)
     np.testing.assert_allclose(grid[:, 2, 2], grid[:, 2, 3], rtol=1e-12)

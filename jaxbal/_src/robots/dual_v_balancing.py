@@ -26,6 +26,8 @@ import jax.numpy as jnp
 
 import jaxbal
 from jaxbal._src.robots.dual_v import DualV
+from jaxbal._src.sweep import sweep
+from jaxbal._src.sweep_axes import grid
 from jaxbal._src.types import Array, Float
 
 __all__ = [
@@ -38,8 +40,10 @@ __all__ = [
     "codesign_loss",
     "counter_mass_design",
     "payload_sweep",
+    "peak_force_x",
     "reduced_mass",
     "shaking_forces",
+    "with_balance_fraction",
     "with_counter_mass_moments",
 ]
 
@@ -142,30 +146,48 @@ def balance_line_offsets(moments, reference) -> tuple[Float[Array, ""], Float[Ar
     return jnp.max(jnp.abs(deviation / reference)), off_line
 
 
-@eqx.filter_jit
-def _peak_force_x(robots: DualV, states) -> Array:
-    """``max_t |F_x|`` [N] of a batch of robots (leading axis of the leaves)."""
-
-    def one(robot):
-        force = jax.vmap(lambda q, qd, qdd: jaxbal.shaking_wrench(robot, q, qd, qdd)[0][0])
-        return jnp.max(jnp.abs(force(*states)))
-
-    return jax.vmap(one)(robots)
+def peak_force_x(robot: DualV, states) -> Float[Array, ""]:
+    """``max_t |F_x|`` [N] along joint states ``(q, q̇, q̈)`` ``(t, 11)`` each (the metric
+    of :func:`balance_sweep` and :func:`payload_sweep`, a :func:`jaxbal.sweep` metric)."""
+    force = jax.vmap(lambda q, qd, qdd: jaxbal.shaking_wrench(robot, q, qd, qdd)[0][0])
+    return jnp.max(jnp.abs(force(*states)))
 
 
-def balance_sweep(robot: DualV, states, fractions) -> Float[Array, " k"]:
+def with_balance_fraction(robot: DualV, fraction) -> DualV:
+    """The robot with ``m_cm,i·p_cm,i`` set to ``fraction`` of eq (2) (``m_cm`` scaled,
+    ``p_cm``, ``I_cm`` and the tuning masses kept)."""
+    masses = fraction * balance_condition_eq2(robot) / robot.p_cm
+    return eqx.tree_at(lambda r: r.m_cm, robot, masses)
+
+
+def _peak_force_x_sweep(robot: DualV, states, dim: str, axis):
+    """``max_t |F_x|`` over one :func:`jaxbal.sweep` axis, as a labelled DataArray."""
+    dataset = sweep(
+        peak_force_x, robot, tuple(states), {dim: axis}, units="N",
+        chunk_size=axis.size, progress=False,
+    )  # fmt: skip
+    return dataset["value"].rename("peak_force_x")
+
+
+def balance_sweep(robot: DualV, states, fractions):
     """``max_t |F_x|`` [N] along joint states ``(q, q̇, q̈)`` ``(t, 11)`` each, with
-    ``m_cm,i·p_cm,i`` set to each fraction of eq (2) (``m_cm`` scaled, ``p_cm`` kept): the
-    shortfall acts as a payload ``2δμ/l_i1`` at the platform centre (eq 30)."""
-    required = balance_condition_eq2(robot)
-    masses = jnp.asarray(fractions, dtype=float)[:, None] * required / robot.p_cm
-    robots = jax.vmap(lambda m: eqx.tree_at(lambda r: r.m_cm, robot, m))(masses)
-    return _peak_force_x(robots, states)
+    ``m_cm,i·p_cm,i`` set to each fraction of eq (2) (:func:`with_balance_fraction`): the
+    shortfall acts as a payload ``2δμ/l_i1`` at the platform centre (eq 30).
+
+    Returns:
+        An :class:`xarray.DataArray` ``peak_force_x`` [N] over ``balance_fraction`` [-]
+        (one :func:`jaxbal.sweep` block).
+    """
+    axis = grid(fractions, units="-", set=with_balance_fraction)
+    return _peak_force_x_sweep(robot, states, "balance_fraction", axis)
 
 
-def payload_sweep(robot: DualV, states, payloads) -> Float[Array, " k"]:
+def payload_sweep(robot: DualV, states, payloads):
     """``max_t |F_x|`` [N] along joint states ``(q, q̇, q̈)`` with each payload [kg] at the
-    platform centre (eq 30: ``|F_x| = (m_red + payload)·|ẍ5|`` for translations)."""
-    values = jnp.asarray(payloads, dtype=float)
-    robots = jax.vmap(lambda m: eqx.tree_at(lambda r: r.payload, robot, m))(values)
-    return _peak_force_x(robots, states)
+    platform centre (eq 30: ``|F_x| = (m_red + payload)·|ẍ5|`` for translations).
+
+    Returns:
+        An :class:`xarray.DataArray` ``peak_force_x`` [N] over ``payload`` [kg] (the
+        design variable, one :func:`jaxbal.sweep` block).
+    """
+    return _peak_force_x_sweep(robot, states, "payload", grid(payloads, units="kg"))

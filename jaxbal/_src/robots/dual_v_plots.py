@@ -175,19 +175,27 @@ def plot_bearing_forces(times, histories, labels=("unbalanced", "balanced")):
     return fig
 
 
-def plot_sweeps(fractions, balance_forces, payloads, payload_forces, marks=(96.72, 0.107)):
+def plot_sweeps(balance, payload, marks=(96.72, 0.107)):
     """Eq (30): peak ``|F_x|`` [N] against the counter-mass moment (fraction of eq 2)
-    and against a payload [kg]; dashed lines at ``marks`` (the 96.72 % robot, 0.107 kg)."""
+    and against a payload [kg]; dashed lines at ``marks`` (the 96.72 % robot, 0.107 kg).
+
+    Args:
+        balance, payload: the labelled sweeps of
+            :func:`~jaxbal.robots.dual_v_balancing.balance_sweep` (over
+            ``balance_fraction``) and :func:`~jaxbal.robots.dual_v_balancing.payload_sweep`
+            (over ``payload``).
+    """
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 3.8))
-    axes[0].plot(100 * np.asarray(fractions), balance_forces)
+    units = balance.attrs.get("units", "N")
+    axes[0].plot(100 * balance["balance_fraction"].values, balance.values)
     axes[0].axvline(marks[0], ls="--", color="0.5")
     axes[0].set_xlabel("m_cm·p_cm [% of eq (2)]")
-    axes[0].set_ylabel("max |ShF_x| on the triangle [N]")
-    axes[1].plot(payloads, payload_forces)
+    axes[0].set_ylabel(f"max |ShF_x| on the triangle [{units}]")
+    axes[1].plot(payload["payload"].values, payload.values)
     axes[1].axvline(marks[1], ls="--", color="0.5")
-    axes[1].set_xlabel("payload at the platform centre [kg]")
+    axes[1].set_xlabel(f"payload at the platform centre [{payload['payload'].attrs['units']}]")
     for ax in axes:
         ax.grid(alpha=0.3)
     return fig

@@ -31,9 +31,12 @@ from jaxbal._src.optimize import Solution, minimize
 from jaxbal._src.planning import peak_norm, shaking_peaks, wrench_along
 from jaxbal._src.report import Table
 from jaxbal._src.robots.orthoglide import Orthoglide, motion_cases, switching_times
+from jaxbal._src.sweep import sweep
+from jaxbal._src.sweep_axes import grid
 from jaxbal._src.types import Array, Float
 
 __all__ = [
+    "PAYLOAD_ERROR_PEAKS",
     "ReferenceFit",
     "case_histories",
     "fit_moment_reference",
@@ -165,10 +168,27 @@ def _payload_error(robot, payload, delta, start, end, duration, reference, sampl
     return jnp.stack([f3, f4, m3, m4])
 
 
-@eqx.filter_jit
+#: the peaks of :func:`payload_error_peaks` (its dimension ``peak``) and their units.
+PAYLOAD_ERROR_PEAKS = {"force_case3": "N", "force_case4": "N", "moment_case3": "N·m",
+                       "moment_case4": "N·m"}  # fmt: skip
+#: most 3×3 LUs (points × instants) per call in :func:`payload_error_peaks`: jaxlib 0.10
+#: splits a batch of more than ~7,400 over the XLA threads, and two split at once
+#: deadlocked 2 CPU threads.
+MAX_LU_BATCH = 4096
+
+
+def _error_move(start, end, duration, reference, samples, robot, theta):
+    """The sweep's motion factory (a ``jax.tree_util.Partial`` of the move): ``Δm``, move."""
+    return theta["payload_error"], (start, end, duration, reference, samples)
+
+
+def _error_peaks(robot: Orthoglide, motion) -> Array:  # the sweep's metric; m = robot.payload
+    return _payload_error(robot, robot.payload, motion[0], *motion[1])
+
+
 def payload_error_peaks(
     robot: Orthoglide, payloads, deltas, start, end, duration, reference=None, samples: int = 401
-) -> Float[Array, "p *d 4"]:
+):
     """Peaks ``(F3, F4, M3, M4)`` [N, N, N·m, N·m] when the payload is ``m + Δm``.
 
     Case 3: the COM plan made for the true payload ``m + Δm``; case 4: the plan made for
@@ -179,17 +199,21 @@ def payload_error_peaks(
         deltas: ``()`` or ``(d,)`` payload errors Δm [kg].
 
     Returns:
-        ``(p, 4)`` for a scalar Δm, ``(p, d, 4)`` otherwise.
+        A :func:`jaxbal.sweep` :class:`xarray.DataArray`, ``(p, 4)`` for a scalar Δm and
+        ``(p, d, 4)`` otherwise: dimensions ``payload``, ``payload_error`` [kg] and
+        ``peak`` (:data:`PAYLOAD_ERROR_PEAKS`, with a ``units`` coordinate).
 
     References: Geng et al. (2021), §3.3, Tables 3-4.
     """
-    deltas = jnp.asarray(deltas, dtype=float)
-
-    def one(payload, delta):
-        return _payload_error(robot, payload, delta, start, end, duration, reference, samples)
-
-    over_deltas = jax.vmap(one, in_axes=(None, 0)) if deltas.ndim else one
-    return jax.vmap(over_deltas, in_axes=(0, None))(jnp.asarray(payloads, dtype=float), deltas)
+    axes = {"payload": grid(payloads, units="kg"),
+            "payload_error": grid(jnp.atleast_1d(deltas), units="kg")}  # fmt: skip
+    reference = None if reference is None else jnp.asarray(reference, dtype=float)
+    move = jax.tree_util.Partial(_error_move, start, end, duration, reference, samples)
+    peaks = sweep(_error_peaks, robot, move, axes, output_dims={"value": ("peak",)},
+                  chunk_size=max(MAX_LU_BATCH // (samples + 1), 1), progress=False)  # fmt: skip
+    labels = {"peak": list(PAYLOAD_ERROR_PEAKS), "units": ("peak", [*PAYLOAD_ERROR_PEAKS.values()])}
+    peaks = peaks["value"].assign_coords(labels).rename("payload_error_peaks")
+    return peaks.isel(payload_error=0) if jnp.ndim(deltas) == 0 else peaks
 
 
 @eqx.filter_jit
@@ -282,16 +306,9 @@ def _fit_loss(params, basis, paper, fixed_offset):
 
 
 def reference_errors(
-    robot: Orthoglide,
-    payloads,
-    paper_moments: Float[Array, "p 3"],
-    start,
-    end,
-    duration,
-    slider_offset,
-    reference,
-    samples: int = 401,
-) -> Float[Array, "p 3"]:
+    robot: Orthoglide, payloads, paper_moments: Float[Array, "p 3"], start, end, duration,
+    slider_offset, reference, samples: int = 401,
+) -> Float[Array, "p 3"]:  # fmt: skip
     """``(ours − paper)/paper`` of the peak moments of cases 1-3 about ``reference``
     [m] with the slider offset ``slider_offset`` [m], computed with :func:`payload_peaks`."""
     fitted = eqx.tree_at(lambda r: r.slider_offset, robot, jnp.asarray(slider_offset, float))
@@ -302,16 +319,9 @@ def reference_errors(
 
 
 def fit_moment_reference(
-    robot: Orthoglide,
-    payloads,
-    paper_moments: Float[Array, "p 3"],
-    start,
-    end,
-    duration,
-    guess=(0.0, 0.0, 0.0, 0.0),
-    fixed_offset: float | None = None,
-    samples: int = 401,
-) -> ReferenceFit:
+    robot: Orthoglide, payloads, paper_moments: Float[Array, "p 3"], start, end, duration,
+    guess=(0.0, 0.0, 0.0, 0.0), fixed_offset: float | None = None, samples: int = 401,
+) -> ReferenceFit:  # fmt: skip
     """Slider offset l and moment reference point c that reproduce a table of peak
     shaking moments (Table 2 of Geng et al. 2021): least squares in relative error.
 
@@ -349,29 +359,14 @@ def fit_moment_reference(
     errors = reference_errors(
         robot, payloads, paper, start, end, duration, offset, reference, samples
     )
-    return ReferenceFit(
-        slider_offset=offset,
-        reference=reference,
-        relative_errors=errors,
-        rms_error=jnp.sqrt(jnp.mean(errors**2)),
-        max_error=jnp.max(jnp.abs(errors)),
-        solution=solution,
-    )
+    rms, largest = jnp.sqrt(jnp.mean(errors**2)), jnp.max(jnp.abs(errors))
+    return ReferenceFit(offset, reference, errors, rms, largest, solution)
 
 
 def fit_table(
-    table_id: str,
-    title: str,
-    robot: Orthoglide,
-    payloads,
-    paper_moments: Float[Array, "p 3"],
-    start,
-    end,
-    duration,
-    starts: dict,
-    points: dict | None = None,
-    samples: int = 401,
-) -> Table:
+    table_id: str, title: str, robot: Orthoglide, payloads, paper_moments: Float[Array, "p 3"],
+    start, end, duration, starts: dict, points: dict | None = None, samples: int = 401,
+) -> Table:  # fmt: skip
     """:func:`fit_moment_reference` from several starting points, as a table.
 
     Args:
