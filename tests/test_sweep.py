@@ -161,6 +161,24 @@ def test_memory_budget_cuts_blocks_and_the_values_do_not_change(arm):
     np.testing.assert_allclose(whole["value"].values, cut["value"].values, rtol=2e-15, atol=0)
 
 
+def test_blocks_of_batched_solves_are_capped(arm):
+    """jaxlib's CPU LU can deadlock on large batches (see MAX_LU_BATCH): a metric solving
+    400 systems per point gets blocks of 4096 // 400 = 10 points, values unchanged."""
+    from jaxbal._src.sweep import MAX_LU_BATCH
+
+    robot, motion = arm
+
+    def solves(robot, motion):
+        p = robot.design()["payload"]
+        one = lambda b: jnp.linalg.solve(jnp.eye(3) * (1.0 + p + b[0] ** 2) + 0.1, b)  # noqa: E731
+        return jnp.sum(jax.vmap(one)(jnp.ones((400, 3)) + motion.q[:1, :1]))
+
+    ds = jaxbal.sweep(solves, robot, motion, {"payload": np.linspace(0, 1, 25)}, progress=False)
+    assert ds.attrs["blocks_done"] == f"3/{-(-25 // (MAX_LU_BATCH // 400))}"
+    expected = jax.jit(solves)(_with(robot, payload=0.5), motion)
+    assert float(ds["value"].sel(payload=0.5)) == pytest.approx(float(expected), rel=1e-13)
+
+
 def test_bad_axes_are_refused_with_the_name(arm):
     robot, motion = arm
     with pytest.raises(ValueError, match="unknown sweep parameter 'bogus'"):

@@ -170,9 +170,37 @@ class Chunks:
         return result
 
 
+#: most LU factorisations one device batch may hold. jaxlib's CPU LU (``jnp.linalg.solve``)
+#: splits a large batch over XLA's thread pool and, with two such calls at once on a
+#: 2-core machine, can wait forever (measured: a hang from ~8,000 3×3 systems); below this
+#: it runs inline.
+MAX_LU_BATCH = 4096
+
+
+def _lu_batch(jaxpr) -> int:
+    """Matrices factorised by ``lu`` primitives in ``jaxpr`` and its sub-programs."""
+    total = 0
+    for eqn in jaxpr.eqns:
+        if eqn.primitive.name == "lu":
+            shape = eqn.invars[0].aval.shape
+            total += int(np.prod(shape[:-2], dtype=np.int64))
+        for value in eqn.params.values():
+            for sub in value if isinstance(value, tuple | list) else (value,):
+                inner = getattr(sub, "jaxpr", sub)
+                if hasattr(inner, "eqns"):
+                    total += _lu_batch(inner)
+    return total
+
+
 def _chunk_points(program, dynamic, params, budget, total, devices) -> int:
     per_point, fixed = chunk_memory(program, dynamic, params)
     per_device = max((budget - fixed) // per_point, 1)
+    import jax
+
+    one = {k: v[0] for k, v in params.items()}
+    lu = _lu_batch(jax.make_jaxpr(program.point)(dynamic, one).jaxpr)
+    if lu:
+        per_device = min(per_device, max(MAX_LU_BATCH // lu, 1))
     return int(min(per_device * devices, total, MAX_CHUNK))
 
 
