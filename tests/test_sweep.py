@@ -281,6 +281,7 @@ def _arrays(path) -> dict:
     return found, dict(group.attrs)
 
 
+@pytest.mark.slow  # three fresh interpreters (~30 s): make test-all
 def test_sigkill_mid_sweep_then_resume_equals_an_uninterrupted_store(tmp_path):
     killed, clean = tmp_path / "killed.zarr", tmp_path / "clean.zarr"
     out = _child(
@@ -363,6 +364,7 @@ ray.shutdown()
 """
 
 
+@pytest.mark.slow  # a Ray cluster in a fresh interpreter (~40 s): make test-all
 def test_ray_two_workers_equal_local_after_a_worker_is_killed(tmp_path):
     store = str(tmp_path / "ray.zarr")
     result = _json(_child(RAY.replace("sys.argv[1]", repr(store)), timeout=400))
