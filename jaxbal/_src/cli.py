@@ -176,7 +176,7 @@ def sweep_command(
         typer.echo(f"error: {error}", err=True)
         raise typer.Exit(code=2) from None
     sizes = ", ".join(f"{k}={v}" for k, v in dataset.sizes.items())
-    typer.echo(f"{out}: {', '.join(dataset.data_vars)} over {sizes}")
+    typer.echo(f"{out}: {', '.join(sorted(dataset.data_vars))} over {sizes}")
 
 
 @app.command("plot")
