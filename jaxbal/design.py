@@ -12,6 +12,7 @@ from jaxbal._src.design import (
     codesign,
 )
 from jaxbal._src.joint_codesign import (
+    CONSTRAINT_RTOL,
     JointSolution,
     TrapezoidLine,
     joint_codesign,
@@ -32,10 +33,18 @@ from jaxbal._src.metrics import (
     rms_moment,
     rms_torque,
 )
-from jaxbal._src.pareto import ParetoFront, nondominated, pareto_front
+from jaxbal._src.pareto import (
+    ParetoFront,
+    constraint_excess,
+    dominance,
+    nondominated,
+    pareto_front,
+    plot_front,
+)
 
 __all__ = [
     "CONSTRAINT_PENALTY",
+    "CONSTRAINT_RTOL",
     "FEASIBILITY_RTOL",
     "METRICS",
     "JointSolution",
@@ -49,10 +58,13 @@ __all__ = [
     "as_motion",
     "base_inertia",
     "codesign",
+    "constraint_excess",
+    "dominance",
     "joint_codesign",
     "motion_samples",
     "nondominated",
     "pareto_front",
+    "plot_front",
     "payload_metrics",
     "peak_force",
     "peak_moment",

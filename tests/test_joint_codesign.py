@@ -13,6 +13,8 @@ import pytest
 import jaxbal
 from jaxbal.design import (
     TrapezoidLine,
+    constraint_excess,
+    dominance,
     joint_codesign,
     nondominated,
     pareto_front,
@@ -83,13 +85,18 @@ def test_joint_no_worse_than_sequential(problem):
 def test_smooth_max_bounds_the_worst_payload(problem):
     arm, move = problem
     sharpness = 200.0
-    solution = _solve(arm, move, "rms_force", robust="max", sharpness=sharpness, max_steps=1)
+    objective = {"rms_force": 1.0, "added_mass": 0.1}
+    solution = _solve(arm, move, objective, robust="max", sharpness=sharpness, max_steps=1)
     values = payload_metrics(solution.robot, move, solution.trajectory, PAYLOADS, ("rms_force",))
     smooth = float(solution.metrics["rms_force"][1])
     scale = float(solution.metrics["rms_force"][0])
-    # reference: max v <= smax v <= max v + s log(n) / k
-    assert float(values.max()) <= smooth + 1e-9
-    assert smooth <= float(values.max()) + scale * np.log(len(PAYLOADS)) / sharpness + 1e-9
+    # reference: max v - s log(n) / k <= smax v <= max v (log-mean-exp)
+    assert smooth <= float(values.max()) + 1e-9
+    assert float(values.max()) - scale * np.log(len(PAYLOADS)) / sharpness - 1e-9 <= smooth
+    # and exactly the value of a metric the payload does not change (closed form)
+    added = float(jaxbal.design.added_mass(solution.robot))
+    assert added > 0.0
+    assert float(solution.metrics["added_mass"][1]) == pytest.approx(added, rel=1e-12)
 
 
 def test_payload_metrics_vmaps_the_payload(problem):
@@ -121,3 +128,20 @@ def test_front_end_points_and_dominance(problem):
     # the 0.1 g that the r² bound parametrisation approaches it by, START_OFFSET)
     assert float(front.values[-1, 1]) < 1e-4
     assert jax.numpy.all(jnp.diff(front.values[:, 1]) <= 1e-9)
+
+
+def test_dominance_matrix_known_set():
+    values = np.array([[1.0, 3.0], [2.0, 2.0], [2.5, 2.5]])
+    expected = np.zeros((3, 3), dtype=bool)
+    expected[1, 2] = True  # (2, 2) dominates (2.5, 2.5); nothing else dominates
+    np.testing.assert_array_equal(dominance(values), expected)
+
+
+def test_constraint_excess_is_relative_to_the_bound():
+    class Solved:  # the constraints of a JointSolution: name -> (worst value, bound)
+        constraints = {"added_mass": (3.003, 3.0), "peak_torque": (-1.0, -2.0)}
+
+    # reference: hand computation, (3.003 - 3) / 3 = 1e-3 and (-1 + 2) / 2 = 0.5
+    assert constraint_excess(Solved()) == pytest.approx(0.5)
+    Solved.constraints = {"added_mass": (3.003, 3.0)}
+    assert constraint_excess(Solved()) == pytest.approx(1e-3)

@@ -11,7 +11,7 @@ from nbclient import NotebookClient
 ROOT = Path(__file__).resolve().parent.parent
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 #: the public modules a notebook may import from (``jaxbal.robots`` with its submodules).
-PUBLIC = {"robots", "planning", "profiles", "mujoco", "design", "sensitivity", "report"}
+PUBLIC = {"robots", "planning", "profiles", "mujoco", "design", "sensitivity", "report", "sweep"}
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])

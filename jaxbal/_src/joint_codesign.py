@@ -7,11 +7,13 @@ no longer fixed: a motion factory ``motion(robot, θ) -> Motion`` (a module-leve
 function or an ``eqx.Module``, so the compiled loop is reused) samples it for every
 candidate. The metrics are evaluated at every payload of ``payloads`` (one ``vmap``)
 and aggregated by their mean (``robust="mean"``, the expectation over a uniform grid)
-or by a smooth maximum (``robust="max"``)::
+or by a smooth maximum (``robust="max"``), the log-mean-exp of the ``n`` payloads::
 
-    smax(v) = s/k · log Σ_p exp(k v_p / s),      max v ≤ smax(v) ≤ max v + s log(n)/k
+    smax(v) = s/k · log (1/n) Σ_p exp(k v_p / s),    max v − s log(n)/k ≤ smax(v) ≤ max v
 
-with ``s`` the metric's scale and ``k = sharpness``. Constraints (torque limit,
+with ``s`` the metric's scale and ``k = sharpness``; it equals ``v`` exactly for a
+metric that does not depend on the payload (the added mass), so a Pareto front's
+added-mass end point is the added mass itself, not ``v + s log(n)/k``. Constraints (torque limit,
 added-mass budget, …) hold at the *worst* payload (hard maximum). The loss, the bound
 reparametrisation and the penalty are those of :mod:`jaxbal._src.design`.
 
@@ -52,9 +54,13 @@ from jaxbal._src.trajectory import StraightLine, sample
 from jaxbal._src.types import Array, Scalar
 from jaxbal._src.validation import runtime_checks
 
-__all__ = ["JointSolution", "TrapezoidLine", "joint_codesign", "payload_metrics"]
+__all__ = ["CONSTRAINT_RTOL", "JointSolution", "TrapezoidLine", "joint_codesign", "payload_metrics"]
 
 MotionFactory = Callable[[Robot, dict], Motion]
+
+#: the shifted-penalty rounds stop once every constraint holds to this fraction of its
+#: scale (its bound): ``c ≤ b + CONSTRAINT_RTOL·|b|`` at the worst payload.
+CONSTRAINT_RTOL = 1e-6
 
 
 class JointSolution(NamedTuple):
@@ -132,7 +138,8 @@ def _aggregate(values: Array, scales: Array, robust: str, sharpness) -> Array:
     if robust == "mean":
         return jnp.mean(values, axis=0)
     scaled = sharpness * values / scales
-    return scales / sharpness * jax.scipy.special.logsumexp(scaled, axis=0)
+    log_mean = jax.scipy.special.logsumexp(scaled, axis=0) - np.log(values.shape[0])
+    return scales / sharpness * log_mean
 
 
 def _per_payload(robot, motion, theta, payloads, metrics):
@@ -240,8 +247,10 @@ def joint_codesign(
         scales: optional fixed scale per objective metric name (default: its value at
             the start) — pass the same scales along a Pareto front.
         max_steps, gtol, optimizer: L-BFGS settings (:func:`jaxbal.minimize`).
-        rounds: solves with a shifted penalty bound (same compilation), so that the
-            constraints hold at the worst payload up to the solver's accuracy.
+        rounds: at most this many solves with a shifted penalty bound (same
+            compilation), so that the constraints hold at the worst payload up to the
+            solver's accuracy; they stop early once every constraint holds to
+            :data:`CONSTRAINT_RTOL` of its bound.
     """
     if robust not in ("mean", "max"):
         raise ValueError(f"robust must be 'mean' or 'max', got {robust!r}")
@@ -295,7 +304,10 @@ def joint_codesign(
             candidate = robot.with_design(_to_design(params["design"], problem))
             theta = _to_design(params["trajectory"], theta_problem)
             worst = jnp.max(payload_metrics(candidate, motion, theta, payloads, everything), 0)
-            shift = jnp.maximum(shift + (worst[where] - bounds), 0.0)
+            excess = worst[where] - bounds
+            if bool(jnp.all(excess <= CONSTRAINT_RTOL * problem.bound_scales)):
+                break  # every constraint met to CONSTRAINT_RTOL: no further round
+            shift = jnp.maximum(shift + excess, 0.0)
         final_value = _loss(params, robot, motion, joint)
     # Keep the start if the optimiser ended above it (non-smooth peaks).
     better = final_value <= initial_value

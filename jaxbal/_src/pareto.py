@@ -4,8 +4,17 @@
 :mod:`jaxbal._src.design`) for a sequence of weights ``w``, each solve starting from the
 previous optimum (continuation), with fixed scales ``s`` so that every point solves the
 same problem family: the weights are array leaves, so the L-BFGS loop is compiled once.
-The end points ``w = 0`` and ``w = 1`` are the single-objective optima; dominated
-points (possible with a non-convex front) are flagged by :func:`nondominated`.
+The end points ``w = 0`` and ``w = 1`` are the single-objective optima.
+
+A weighted-sum optimum cannot be dominated by another feasible design: the dominating
+design has a lower loss at that weight. A dominated point therefore means that its solve
+stopped in a worse local optimum (peaks are non-smooth); ``repair`` passes re-solve
+every dominated point starting from the design that dominates it and keep the result
+if its loss is lower. Points still dominated afterwards are flagged by
+:func:`nondominated` (``ParetoFront.efficient``), never hidden. Dominance is judged
+beyond the accuracy the solves are held to, ``CONSTRAINT_RTOL`` (1e-6) of each metric's
+largest magnitude: two solves of a bound-active constraint that differ by 1e-8 kg are a
+tie, not a dominated point.
 
 References:
     Miettinen (1999), Nonlinear Multiobjective Optimization, §3.1 (weighting method).
@@ -18,11 +27,18 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.joint_codesign import joint_codesign
+from jaxbal._src.joint_codesign import CONSTRAINT_RTOL, _floors, joint_codesign, payload_metrics
 from jaxbal._src.metrics import metric_name
 from jaxbal._src.types import Array
 
-__all__ = ["ParetoFront", "nondominated", "pareto_front"]
+__all__ = [
+    "ParetoFront",
+    "constraint_excess",
+    "dominance",
+    "nondominated",
+    "pareto_front",
+    "plot_front",
+]
 
 
 class ParetoFront(NamedTuple):
@@ -46,14 +62,32 @@ class ParetoFront(NamedTuple):
 def nondominated(values, rtol: float = 1e-9) -> np.ndarray:
     """``(n,)`` mask of the points of ``values`` ``(n, k)`` (minimised) that no other
     point dominates (better or equal on all, better on one, beyond ``rtol``)."""
+    return ~np.any(dominance(values, rtol), axis=0)
+
+
+def dominance(values, rtol: float = 1e-9) -> np.ndarray:
+    """``(n, n)`` matrix ``D[j, i]``: point ``j`` of ``values`` ``(n, k)`` (minimised)
+    dominates point ``i`` (no worse on all, better on one, beyond ``rtol`` of each
+    metric's largest magnitude)."""
     values = np.asarray(values, dtype=float)
     slack = rtol * np.maximum(np.abs(values).max(axis=0), 1e-300)
-    mask = np.ones(len(values), dtype=bool)
-    for i, v in enumerate(values):
-        no_worse = np.all(values <= v + slack, axis=1)
-        better = np.any(values < v - slack, axis=1)
-        mask[i] = not np.any(no_worse & better)
-    return mask
+    no_worse = np.all(values[:, None, :] <= values[None, :, :] + slack, axis=-1)
+    better = np.any(values[:, None, :] < values[None, :, :] - slack, axis=-1)
+    return no_worse & better
+
+
+def _scales(robot, motion, trajectory, metrics, options) -> dict[str, float]:
+    """Fixed scale of each metric along the front: its worst (``robust="max"``) or mean
+    value over the payloads at the start, floored as in :func:`joint_codesign`."""
+    payloads = options.get("payloads")
+    if payloads is None:
+        payloads = jnp.atleast_1d(robot.design().get("payload", jnp.zeros(())))
+    theta = {k: jnp.asarray(v, float) for k, v in trajectory.items()}
+    values = np.asarray(payload_metrics(robot, motion, theta, payloads, tuple(metrics)))
+    values = values.max(axis=0) if options.get("robust", "mean") == "max" else values.mean(0)
+    floors = np.asarray(_floors(robot, motion, theta, tuple(metrics)))
+    scales = np.maximum(np.abs(values), floors)
+    return {metric_name(m): float(x) for m, x in zip(metrics, scales, strict=True)}
 
 
 def pareto_front(
@@ -64,6 +98,7 @@ def pareto_front(
     weights,
     *,
     start=None,
+    repair: int = 2,
     **options,
 ) -> ParetoFront:
     """Front between ``metrics = (a, b)`` of :func:`~jaxbal.design.joint_codesign`.
@@ -73,6 +108,7 @@ def pareto_front(
         metrics: the two metrics ``(a, b)``.
         weights: increasing weights ``w ∈ [0, 1]`` of ``b``.
         start: starting design of the first solve.
+        repair: passes that re-solve each dominated point from a dominating one.
         **options: passed on (bounds, ``free``, ``payloads``, ``robust``, constraints…).
 
     Returns:
@@ -80,26 +116,66 @@ def pareto_front(
     """
     a, b = metrics
     weights = np.asarray(weights, dtype=float)
-    first = joint_codesign(robot, motion, trajectory, {a: 1.0, b: 0.0}, start=start, **options)
-    scales = {metric_name(m): float(first.metrics[metric_name(m)][0]) for m in metrics}
+    scales = _scales(robot.with_design(dict(start or {})), motion, trajectory, metrics, options)
     free = options.pop("free", None)
     names = free if free is not None else [n for n in robot.design() if n != "payload"]
-    solutions, design, theta = [], start or {}, dict(trajectory)
-    for w in weights:
-        solution = joint_codesign(
+
+    def solve(w, design, theta):
+        return joint_codesign(
             robot, motion, theta, {a: 1.0 - w, b: w}, start=design, free=free,
             scales=scales, **options,
         )  # fmt: skip
-        solutions.append(solution)
-        design = {n: solution.design[n] for n in names}
-        theta = solution.trajectory
-    values = jnp.asarray(
-        [[s.metrics[metric_name(m)][1] for m in metrics] for s in solutions], dtype=float
-    )
+
+    def start_of(solution):
+        return {n: solution.design[n] for n in names}, solution.trajectory
+
+    def front_values(solutions):
+        return np.asarray(
+            [[s.metrics[metric_name(m)][1] for m in metrics] for s in solutions], dtype=float
+        )
+
+    solutions, design, theta = [], start or {}, dict(trajectory)
+    for w in weights:
+        solutions.append(solve(w, design, theta))
+        design, theta = start_of(solutions[-1])
+    for _ in range(repair):
+        values = front_values(solutions)
+        matrix = dominance(values, CONSTRAINT_RTOL)
+        dominated = np.flatnonzero(np.any(matrix, axis=0))
+        if dominated.size == 0:
+            break
+        for i in dominated:
+            # the dominating point with the lowest loss at weight i is the best start
+            dominating = np.flatnonzero(matrix[:, i])
+            w, scale = weights[i], np.asarray([scales[metric_name(m)] for m in metrics])
+            losses = ((values[dominating] / scale) ** 2) @ np.asarray([1.0 - w, w])
+            candidate = solve(w, *start_of(solutions[dominating[int(np.argmin(losses))]]))
+            if float(candidate.value) < float(solutions[i].value):
+                solutions[i] = candidate
+    values = jnp.asarray(front_values(solutions))
     return ParetoFront(
         weights=jnp.asarray(weights),
         values=values,
         solutions=solutions,
-        efficient=jnp.asarray(nondominated(values)),
+        efficient=jnp.asarray(nondominated(values, CONSTRAINT_RTOL)),
         feasible=jnp.asarray([bool(s.feasible) for s in solutions]),
     )
+
+
+def constraint_excess(solution) -> float:
+    """Largest constraint violation of a :class:`~jaxbal.design.JointSolution` at its
+    worst payload, relative to the bound's magnitude (≤ 0: every constraint met)."""
+    excess = [(value - bound) / abs(bound) for value, bound in solution.constraints.values()]
+    return max((float(x) for x in excess), default=float("-inf"))
+
+
+def plot_front(axis, front: ParetoFront, labels=("a", "b"), marks=None):
+    """Draw ``front`` on a Matplotlib ``axis``: metric b across, metric a up; dominated
+    points left out. ``marks``: ``{label: (b, a)}`` designs to mark (e.g. a paper's)."""
+    values = np.asarray(front.values)[np.asarray(front.efficient)]
+    axis.plot(values[:, 1], values[:, 0], "o-", color="k", ms=3, label="front")
+    for (label, (x, y)), style in zip((marks or {}).items(), ("r*", "bs", "g^", "mD", "c>"),
+                                      strict=False):  # fmt: skip
+        axis.plot([x], [y], style, ms=8, label=label)
+    axis.set(xlabel=labels[1], ylabel=labels[0])
+    axis.legend(fontsize=6)
