@@ -226,3 +226,27 @@ def test_bad_inputs_raise(motion_2r):
     with pytest.raises(ValueError, match="added_inertia"):
         codesign(arm, motion_2r, constraints={"mass": 1.0})
     assert set(METRICS) >= {"peak_force", "rms_force", "peak_moment", "rms_moment"}
+
+
+@pytest.mark.parametrize("name", ["dual_v", "scara"])
+def test_codesign_cannot_reach_a_negative_mass(name, scara_case):
+    """An objective whose unconstrained optimum has negative counter-masses (the RMS
+    actuator torque falls as a counter-mass gets lighter, past zero): the co-design stops
+    at zero mass and every body mass the physics sees stays >= 0 (issue 12)."""
+    if name == "scara":
+        robot, motion = scara_case
+    else:
+        robot = jaxbal.robots.dual_v()
+        motion = _line(robot, [0.0, -0.05, 0.0], [0.05, 0.05, 0.0], 0.1)
+    small = {"counter_mass": jnp.full_like(robot.design()["counter_mass"], 0.05)}
+    # reference: the gradient at a light design pushes the masses down (towards < 0)
+    slope = jax.grad(
+        lambda m: METRICS["rms_torque"](robot.with_design({"counter_mass": m}), motion)
+    )(small["counter_mass"])
+    assert np.all(np.asarray(slope) > 0.0)
+    solution = codesign(
+        robot, motion, "rms_torque", free=("counter_mass",), start=small, max_steps=40
+    )
+    masses = np.asarray(solution.design["counter_mass"])
+    assert np.all(masses >= 0.0) and np.all(masses < 0.05)
+    assert np.all(np.asarray(solution.robot.mass_properties().mass) >= 0.0)
