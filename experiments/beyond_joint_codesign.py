@@ -18,7 +18,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 import jaxbal  # noqa: E402
 import jaxbal.design as jd  # noqa: E402
-from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
+from jaxbal.report import Experiment, Result, Table, release_compiled_programs, save_figure  # noqa: E402
 from jaxbal.robots import PickAndPlace, ScaraTrajectory  # noqa: E402
 from jaxbal.robots import scara_balancing as sb  # noqa: E402
 
@@ -137,6 +137,7 @@ def run(ctx) -> Result:
                   max(jd.constraint_excess(s) for s in solved), "-")  # fmt: skip
         parts = [f"{d} {v[:, 0].max():.4g} N ({v[0, 1]:.3g} kg)" for d, v in designs.items()]
         summary.append(f"* {name}, {payloads[0]:g}-{payloads[-1]:g} kg: {'; '.join(parts)}.")
+        release_compiled_programs()  # ~7,000 memory mappings per robot
     notes = NOTES + "\nWorst peak shaking force over the payload grid (added mass):\n\n"
     return Result(tables=[table, per_payload], figures=[_plot(ctx, fronts)],
                   notes=notes + "\n".join(summary) + "\n")  # fmt: skip

@@ -9,6 +9,7 @@ from jaxbal._src.report import (
     Table,
     atomic_write_bytes,
     atomic_write_text,
+    release_compiled_programs,
     save_figure,
 )
 from jaxbal._src.studies import plot_histories
@@ -22,5 +23,6 @@ __all__ = [
     "atomic_write_bytes",
     "atomic_write_text",
     "plot_histories",
+    "release_compiled_programs",
     "save_figure",
 ]

@@ -17,6 +17,7 @@ file.
 from __future__ import annotations
 
 import csv
+import gc
 import io
 import math
 import os
@@ -235,3 +236,18 @@ def _within(entries: list[Entry], tolerance: float | None, kinds: bool = False) 
         counts = {k: sum(e.kind == k for e in entries) for k in KINDS}
         text += " " + ", ".join(f"{n} {k}" for k, n in counts.items() if n)
     return text
+
+
+def release_compiled_programs() -> None:
+    """Drop JAX's in-memory caches of traced and compiled programs between experiments.
+
+    Each program XLA compiles for the CPU holds its own memory mappings; one process
+    that runs every experiment (thousands of programs: co-designs, fronts, sweeps) ran
+    out of them (LLVM "Unable to allocate section memory", the kernel's
+    ``vm.max_map_count``). An experiment's programs are not reused by the next, and the
+    persistent compilation cache keeps any recompilation cheap.
+    """
+    import jax  # noqa: PLC0415 (this module is otherwise free of JAX)
+
+    jax.clear_caches()
+    gc.collect()

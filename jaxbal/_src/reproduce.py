@@ -13,7 +13,14 @@ from pathlib import Path
 
 from tqdm.auto import tqdm
 
-from jaxbal._src.report import Context, Experiment, atomic_write_text, render_report, render_summary
+from jaxbal._src.report import (
+    Context,
+    Experiment,
+    atomic_write_text,
+    release_compiled_programs,
+    render_report,
+    render_summary,
+)
 
 README_START = "<!-- results:start -->"
 README_END = "<!-- results:end -->"
@@ -76,6 +83,7 @@ def run_all(out: Path, only: str | None = None, update_readme: Path | None = Non
             for table in result.tables:
                 atomic_write_text(out / f"{table.id}.csv", table.to_csv())
             results.append((experiment, result))
+            release_compiled_programs()
             bar.update(1)
     atomic_write_text(out / "REPORT.md", render_report(results))
     summary = render_summary(results)
