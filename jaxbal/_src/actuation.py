@@ -63,5 +63,11 @@ def actuator_torques(
         return forces[actuated]
     basis = velocity_basis(robot, q)
     a = basis[actuated].T  # (m, a)
-    torques = a.T @ jnp.linalg.solve(a @ a.T, basis.T @ forces)
+    if a.shape[0] == a.shape[1]:
+        # Non-redundant: solve a τ = Nᵀ Q directly. The minimum-norm form squares
+        # cond(a): 1e-3 rad from a parallel singularity (the Orthoglide with its legs
+        # near one plane) a aᵀ was singular to rounding and the torques NaN.
+        torques = jnp.linalg.solve(a, basis.T @ forces)
+    else:
+        torques = a.T @ jnp.linalg.solve(a @ a.T, basis.T @ forces)
     return checked_finite("actuator torques", robot, torques)

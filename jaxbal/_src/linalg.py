@@ -105,5 +105,9 @@ def two_link_ik(target, l1, l2, sign):
     valid = (jnp.abs(cos_q2) <= 1.0) & jnp.isfinite(cos_q2)
     cos_q2 = jnp.where(jnp.isfinite(cos_q2), cos_q2, 0.0)
     q2 = sign * jnp.arccos(jnp.clip(cos_q2, -1.0 + 1e-15, 1.0 - 1e-15))
+    # At a target on the origin (folded with l1 = l2, else unreachable) arctan2's
+    # gradient is NaN: take the direction from the stand-in (1, 0) there instead.
+    apart = x**2 + y**2 > 0.0
+    x, y = jnp.where(apart, x, 1.0), jnp.where(apart, y, 0.0)
     q1 = jnp.arctan2(y, x) - jnp.arctan2(l2 * jnp.sin(q2), l1 + l2 * jnp.cos(q2))
     return q1, q2, valid

@@ -18,9 +18,7 @@ I_act,i                 0.0041                     kg·m²         actuator roto
 ======================  =========================  ============  ======================
 
 Source: Table 1 of the paper; inertias are about each body's COM.
-
-Layout (Fig 2c is not in the text; derived from it and the equations, see the drawing
-``plot_layout``):
+Layout (Fig 2c; derived from it and the equations, drawn by ``plot_layout``):
 
 * base frame at the workspace centre; platform pose ``u = (x5, y5, θ5)``. At ``θ5 = 0``
   the platform lies along y: ``C_1 = C_2 = (x5, y5 + b)``, ``C_3 = C_4 = (x5, y5 - b)``,
@@ -291,7 +289,9 @@ class DualV(PlanarRobot):
         if not return_valid:
             raise_if_invalid(valid, "DUAL-V platform pose outside the workspace", pose_given)
         alpha = jnp.arccos(jnp.clip(cos_alpha, -1.0 + 1e-15, 1.0 - 1e-15))
-        theta1 = wrap(jnp.arctan2(reach[:, 1], reach[:, 0]) - sigma * alpha)
+        # an arm folded onto its pivot (reach 0): arctan2's gradient is NaN, use (1, 0)
+        direction = jnp.where((distance2 > 1e-20)[:, None], reach, jnp.array([1.0, 0.0]))
+        theta1 = wrap(jnp.arctan2(direction[:, 1], direction[:, 0]) - sigma * alpha)
         to_end = reach - self.l1[:, None] * unit(theta1)
         theta2 = jnp.arctan2(to_end[:, 1], to_end[:, 0])
         q = jnp.concatenate([theta1, theta2, pose])
