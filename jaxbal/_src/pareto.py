@@ -11,10 +11,10 @@ design has a lower loss at that weight. A dominated point therefore means that i
 stopped in a worse local optimum (peaks are non-smooth); ``repair`` passes re-solve
 every dominated point starting from the design that dominates it and keep the result
 if its loss is lower. Points still dominated afterwards are flagged by
-:func:`nondominated` (``ParetoFront.efficient``), never hidden. Dominance is judged
-beyond the accuracy the solves are held to, ``CONSTRAINT_RTOL`` (1e-6) of each metric's
-largest magnitude: two solves of a bound-active constraint that differ by 1e-8 kg are a
-tie, not a dominated point.
+:func:`nondominated` (``ParetoFront.efficient``), never hidden. Repair is tried for
+dominance beyond ``CONSTRAINT_RTOL`` (1e-6, relative), the accuracy the solves are
+held to; a point is reported dominated beyond :data:`DOMINANCE_RTOL` (1e-5): solves
+that land on the same bound-active design a few 1e-6 apart are a tie.
 
 References:
     Miettinen (1999), Nonlinear Multiobjective Optimization, §3.1 (weighting method).
@@ -30,6 +30,13 @@ import numpy as np
 from jaxbal._src.joint_codesign import CONSTRAINT_RTOL, _floors, joint_codesign, payload_metrics
 from jaxbal._src.metrics import metric_name
 from jaxbal._src.types import Array
+
+#: a front point is reported dominated (``ParetoFront.efficient`` False) only beyond this
+#: fraction of each metric's largest magnitude: ten times the accuracy constraints are
+#: held to (``CONSTRAINT_RTOL``), so that two solves landing on the same bound-active
+#: design (e.g. 4.9999936 and 5.0000002 kg for a 5 kg budget) are a tie. The repair
+#: passes re-solve every point dominated beyond ``CONSTRAINT_RTOL`` already.
+DOMINANCE_RTOL = 10 * CONSTRAINT_RTOL
 
 __all__ = [
     "ParetoFront",
@@ -61,18 +68,19 @@ class ParetoFront(NamedTuple):
 
 def nondominated(values, rtol: float = 1e-9) -> np.ndarray:
     """``(n,)`` mask of the points of ``values`` ``(n, k)`` (minimised) that no other
-    point dominates (better or equal on all, better on one, beyond ``rtol``)."""
+    point dominates (:func:`dominance`)."""
     return ~np.any(dominance(values, rtol), axis=0)
 
 
 def dominance(values, rtol: float = 1e-9) -> np.ndarray:
     """``(n, n)`` matrix ``D[j, i]``: point ``j`` of ``values`` ``(n, k)`` (minimised)
-    dominates point ``i`` (no worse on all, better on one, beyond ``rtol`` of each
-    metric's largest magnitude)."""
+    dominates point ``i``: no worse on every metric and better on one, each beyond
+    ``rtol`` times the larger magnitude of the two values compared."""
     values = np.asarray(values, dtype=float)
-    slack = rtol * np.maximum(np.abs(values).max(axis=0), 1e-300)
-    no_worse = np.all(values[:, None, :] <= values[None, :, :] + slack, axis=-1)
-    better = np.any(values[:, None, :] < values[None, :, :] - slack, axis=-1)
+    u, v = values[:, None, :], values[None, :, :]
+    slack = rtol * np.maximum(np.maximum(np.abs(u), np.abs(v)), 1e-300)
+    no_worse = np.all(u <= v + slack, axis=-1)
+    better = np.any(u < v - slack, axis=-1)
     return no_worse & better
 
 
@@ -157,7 +165,7 @@ def pareto_front(
         weights=jnp.asarray(weights),
         values=values,
         solutions=solutions,
-        efficient=jnp.asarray(nondominated(values, CONSTRAINT_RTOL)),
+        efficient=jnp.asarray(nondominated(values, DOMINANCE_RTOL)),
         feasible=jnp.asarray([bool(s.feasible) for s in solutions]),
     )
 
