@@ -228,6 +228,7 @@ def test_bad_inputs_raise(motion_2r):
     assert set(METRICS) >= {"peak_force", "rms_force", "peak_moment", "rms_moment"}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["dual_v", "scara"])
 def test_codesign_cannot_reach_a_negative_mass(name, scara_case):
     """An objective whose unconstrained optimum has negative counter-masses (the RMS

@@ -60,6 +60,7 @@ def test_joint_optimum_is_stationary_and_feasible(problem):
         assert LOWER[name] <= float(x) <= UPPER[name]
 
 
+@pytest.mark.slow
 def test_joint_no_worse_than_sequential(problem):
     arm, move = problem
     box = ({k: v - 1e-9 for k, v in THETA.items()}, {k: v + 1e-9 for k, v in THETA.items()})

@@ -32,6 +32,7 @@ def test_readme_results_block_equals_a_fresh_reproduction(tmp_path):
     assert block.strip() == (tmp_path / "SUMMARY.md").read_text().strip()
 
 
+@pytest.mark.slow
 def test_readme_sweep_example_runs_in_ten_lines(tmp_path, monkeypatch):
     blocks = re.findall(r"```python\n(.*?)```", README.read_text(), re.S)
     code = next(b for b in blocks if "# sweep example" in b)

@@ -168,7 +168,14 @@ def _physics(robot, design, q, qd, qdd):
     return jnp.sum(force**2) + jnp.sum(moment**2) + jnp.sum(torques**2)
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
+#: the parallel robots' physics gradients compile for ~25 s each: make test-all
+_PHYSICS = [
+    pytest.param(n, marks=pytest.mark.slow) if n in ("dual_v", "orthoglide") else n
+    for n in sorted(CASES)
+]
+
+
+@pytest.mark.parametrize("name", _PHYSICS)
 def test_physics_gradient_near_singular_poses(name):
     """Gradient of wrench and torques w.r.t. the state (q, q̇, q̈) and the design at the
     states 1e-3 rad from each singularity: finite, not zero; the design gradient
