@@ -34,6 +34,7 @@ from jaxbal._src.metrics import (
     rms_torque,
 )
 from jaxbal._src.pareto import (
+    DOMINANCE_RTOL,
     ParetoFront,
     constraint_excess,
     dominance,
@@ -45,6 +46,7 @@ from jaxbal._src.pareto import (
 __all__ = [
     "CONSTRAINT_PENALTY",
     "CONSTRAINT_RTOL",
+    "DOMINANCE_RTOL",
     "FEASIBILITY_RTOL",
     "METRICS",
     "JointSolution",

@@ -135,6 +135,7 @@ def test_planar_3r_added_mass_budget():
     _reduced(solution, 0.9)
 
 
+@pytest.mark.slow
 def test_dual_v_full_force_balance_within_bounds():
     """DUAL-V without counter-masses, distances bounded to [0, 0.1] m (two-sided map):
     co-design balances it completely (RMS and peak force < 1e-6 of the unbalanced

@@ -166,6 +166,7 @@ def test_vmap_equals_loop():
     assert not bool(valid[0]) and bool(jnp.all(valid[1:]))
 
 
+@pytest.mark.slow
 def test_ik_gradients_finite_and_correct():
     """IK: check_grads (finite differences). Wrench: its gradient with respect to the
     payload and a counter-mass equals central finite differences (1e-6 relative)."""

@@ -320,6 +320,7 @@ def five_bar():
     return robot, motion
 
 
+@pytest.mark.slow
 def test_five_bar_structure_and_loop_closure(five_bar):
     """Parsed structure (planar loop: x and y rows), the move's loop closures (|Φ| <
     1e-12 m, rates 1e-10) and the tip following the line exactly (1e-12)."""
@@ -368,6 +369,7 @@ def test_five_bar_matches_mujoco(five_bar):
     assert _relative(ours, _mujoco_reaction(FIVE_BAR, *motion)) < 1e-9
 
 
+@pytest.mark.slow
 def test_five_bar_gradients_match_finite_differences(five_bar):
     """d(peak force)/d(counter-mass, its position) (jaxbal.sensitivity, check=True)
     and d(peak force)/d(mass of distal_b) (through ``with_body``) equal central

@@ -8,6 +8,7 @@ products of inertia and COM heights, which only the general formula sees directl
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 
 import jaxbal
 from jaxbal._src.momentum import inertial_wrench
@@ -76,6 +77,7 @@ def test_planar_path_equals_general_path_with_products_of_inertia():
     assert float(jnp.max(jnp.abs(general[1][:, :2]))) > 1e-3  # x/y moments are exercised
 
 
+@pytest.mark.slow
 def test_shaking_wrench_dispatches_for_planar_arms():
     for arm in (jaxbal.robots.planar_2r(), jaxbal.robots.planar_3r()):
         assert isinstance(arm, PlanarRobot)

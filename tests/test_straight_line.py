@@ -42,7 +42,9 @@ def test_wrench_equals_the_plain_xla_evaluation(name):
         assert scale > 1.0  # a real, non-trivial wrench
 
 
-@pytest.mark.parametrize("name", ["planar_2r", "scara", "orthoglide"])
+@pytest.mark.parametrize(
+    "name", ["planar_2r", "scara", pytest.param("orthoglide", marks=pytest.mark.slow)]
+)
 def test_wrench_gradients_match_finite_differences(name):
     robot = getattr(jaxbal.robots, name)()
     q, qd, qdd = (x[0] for x in states(robot, 1, seed=3))

@@ -31,14 +31,15 @@ from jaxbal._src.joint_codesign import CONSTRAINT_RTOL, _floors, joint_codesign,
 from jaxbal._src.metrics import metric_name
 from jaxbal._src.types import Array
 
-#: a front point is reported dominated (``ParetoFront.efficient`` False) only beyond this
-#: fraction of each metric's largest magnitude: ten times the accuracy constraints are
-#: held to (``CONSTRAINT_RTOL``), so that two solves landing on the same bound-active
-#: design (e.g. 4.9999936 and 5.0000002 kg for a 5 kg budget) are a tie. The repair
-#: passes re-solve every point dominated beyond ``CONSTRAINT_RTOL`` already.
+#: a front point is reported dominated (``ParetoFront.efficient`` False) only beyond
+#: this fraction of the two values compared (:func:`dominance`): ten times the accuracy
+#: constraints are held to (``CONSTRAINT_RTOL``), so two solves landing on the same
+#: bound-active design (4.9999936 and 5.0000002 kg for a 5 kg budget) are a tie. The
+#: repair passes re-solve every point dominated beyond ``CONSTRAINT_RTOL`` already.
 DOMINANCE_RTOL = 10 * CONSTRAINT_RTOL
 
 __all__ = [
+    "DOMINANCE_RTOL",
     "ParetoFront",
     "constraint_excess",
     "dominance",
