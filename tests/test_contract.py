@@ -112,7 +112,7 @@ def test_shaking_wrench_confirmed_by_mujoco(name):
     assert check.relative < 1e-9, check
 
 
-@pytest.mark.parametrize("name", _slow_for(CASES, "dual_v"))
+@pytest.mark.parametrize("name", _slow_for(CASES, "dual_v", "scara", "orthoglide"))
 def test_com_line_on_every_robot(name):
     """The COM plan moves the total COM on the straight line (1e-9 m) for every robot,
     with exact derivatives (velocity vs central differences of the position, 1e-6)."""
@@ -248,7 +248,7 @@ def motions():
     return out
 
 
-@pytest.mark.parametrize("name", _slow_for(CASES, "dual_v", "orthoglide"))
+@pytest.mark.parametrize("name", _slow_for(CASES, "dual_v", "orthoglide", "scara"))
 def test_codesign_reduces_peak_force_and_payload_sensitivity_matches_fd(name, motions):
     """Generic co-design of the counter-masses lowers the peak shaking force of the move
     on every robot; the payload sensitivity of the RMS force equals central finite

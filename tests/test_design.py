@@ -157,6 +157,7 @@ def test_dual_v_full_force_balance_within_bounds():
     assert np.all(np.asarray(solution.design["counter_mass"]) >= 0.0)
 
 
+@pytest.mark.slow
 def test_orthoglide_counter_sliders_reduce_force():
     """Orthoglide, counter-sliders from zero, EndEffectorLine (0,0,0) -> (-0.1,0.07,-0.11)
     in 0.1 s: the RMS and peak shaking forces fall below 0.5 of the unbalanced robot's

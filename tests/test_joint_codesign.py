@@ -83,6 +83,7 @@ def test_joint_no_worse_than_sequential(problem):
     assert float(joint.constraints["added_mass"][0]) <= 3.0 * (1 + 1e-6)
 
 
+@pytest.mark.slow
 def test_smooth_max_bounds_the_worst_payload(problem):
     arm, move = problem
     sharpness = 200.0

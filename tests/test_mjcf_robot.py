@@ -356,6 +356,7 @@ def test_five_bar_ik_closure_and_unreachable(five_bar):
         robot.inverse_kinematics(START, branch=2)
 
 
+@pytest.mark.slow
 def test_five_bar_matches_mujoco(five_bar):
     """``confirm`` on the rebuilt tree (counter-masses welded, connect closing the
     loop) agrees with jaxbal to 1e-9; so does MuJoCo on the user's own file for the

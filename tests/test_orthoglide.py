@@ -208,6 +208,7 @@ def test_com_inverse_kinematics_round_trip_and_vmap():
     assert valid.tolist() == [True, False]
 
 
+@pytest.mark.slow
 def test_com_inverse_kinematics_gradients_match_finite_differences():
     # reference: central finite differences (h = 1e-6) and check_grads (order 2)
     robot = orthoglide(payload=1.0)

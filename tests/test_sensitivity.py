@@ -64,6 +64,8 @@ CASES = {
     "dual_v": _dual_v,
     "orthoglide": _orthoglide,
 }
+#: cases whose gradient compiles for long: make test-all
+LONG_COMPILES = {"dual_v", "orthoglide"}
 
 
 @jax.jit
@@ -71,7 +73,10 @@ def _rms_force_with_payload(robot, motion, payload):
     return rms_force(robot.with_design({"payload": payload}), motion)
 
 
-@pytest.mark.parametrize("name", list(CASES))
+@pytest.mark.parametrize(
+    "name",
+    [pytest.param(n, marks=pytest.mark.slow) if n in LONG_COMPILES else n for n in CASES],
+)
 def test_gradient_matches_central_differences(name):
     """∂ rms_force / ∂(payload, counter_mass) on each robot equals central finite
     differences to 1e-6 relative (sensitivity's own check, relative step 1e-6), and the
