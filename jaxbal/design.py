@@ -14,12 +14,12 @@ from jaxbal._src.design import (
 from jaxbal._src.joint_codesign import (
     CONSTRAINT_RTOL,
     JointSolution,
-    TrapezoidLine,
     joint_codesign,
     payload_metrics,
 )
 from jaxbal._src.metrics import (
     METRICS,
+    JerkMotion,
     Motion,
     added_inertia,
     added_mass,
@@ -29,10 +29,12 @@ from jaxbal._src.metrics import (
     peak_force,
     peak_moment,
     peak_torque,
+    peak_torque_rate,
     rms_force,
     rms_moment,
     rms_torque,
 )
+from jaxbal._src.motion_factories import ComTrapezoid, TrapezoidLine
 from jaxbal._src.pareto import (
     DOMINANCE_RTOL,
     ParetoFront,
@@ -49,6 +51,8 @@ __all__ = [
     "DOMINANCE_RTOL",
     "FEASIBILITY_RTOL",
     "METRICS",
+    "ComTrapezoid",
+    "JerkMotion",
     "JointSolution",
     "ParetoFront",
     "START_OFFSET",
@@ -71,6 +75,7 @@ __all__ = [
     "peak_force",
     "peak_moment",
     "peak_torque",
+    "peak_torque_rate",
     "rms_force",
     "rms_moment",
     "rms_torque",

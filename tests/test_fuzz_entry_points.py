@@ -318,18 +318,33 @@ def test_huge_force_does_not_overflow_in_the_norm_regression():
     )
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="no generic geometry check: a negative link length set with eqx.tree_at is "
-    "evaluated as a mirrored link (finite numbers, no error); only PlanarArm.__init__ "
-    "refuses it",
+@pytest.mark.parametrize(
+    "name, field",
+    [
+        ("planar_2r", "lengths"),
+        ("scara", "lengths"),
+        ("dual_v", "l2"),
+        ("dual_v", "a"),
+        ("orthoglide", "length"),
+    ],
 )
-def test_negative_length_through_tree_at_is_refused():
-    arm = robots.planar_2r()
-    mirrored = eqx.tree_at(lambda r: r.lengths, arm, jnp.array([-0.5, 0.3]))
-    motion = MOTIONS["planar_2r"]
-    with pytest.raises(ValueError, match="lengths"):
-        jaxbal.shaking_wrench(mirrored, motion.q[1], motion.qd[1], motion.qdd[1])
+def test_negative_geometry_through_tree_at_is_refused(name, field):
+    """A negative link length set with ``eqx.tree_at`` was evaluated as a mirrored link
+    (finite numbers, no error): refused eagerly, naming the field and its value, and
+    under ``jit`` by a runtime error (compiled for every robot in ``make fuzz``)."""
+    robot = getattr(robots, name)()
+    value = getattr(robot, field)
+    mirrored = eqx.tree_at(lambda r: getattr(r, field), robot, -value)
+    motion = MOTIONS[name] if name in MOTIONS else _motion(name)
+    state = motion.q[1], motion.qd[1], motion.qdd[1]
+    with pytest.raises(ValueError, match=rf"must be >= 0.*{type(robot).__name__}\.{field}"):
+        jaxbal.shaking_wrench(mirrored, *state)
+    if name not in PHYSICS:  # compiling the wrench: 5-7 s per robot on 2 cores
+        return
+    with pytest.raises(Exception, match="robot parameters must be >= 0"):
+        jax.block_until_ready(eqx.filter_jit(jaxbal.shaking_wrench)(mirrored, *state))
+    force, _ = jax.jit(jaxbal.shaking_wrench)(robot, *state)  # the robot itself passes
+    assert np.all(np.isfinite(force))
 
 
 # --- 3. sensitivity and codesign: argument checks -----------------------------------------

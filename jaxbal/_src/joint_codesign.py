@@ -47,14 +47,11 @@ from jaxbal._src.design import (
 )
 from jaxbal._src.metrics import Motion, check_design_names, metric_name, resolve_metric
 from jaxbal._src.optimize import minimize
-from jaxbal._src.planning import EndEffectorLine
-from jaxbal._src.profiles import TrapezoidalAcceleration
 from jaxbal._src.robot import Robot
-from jaxbal._src.trajectory import StraightLine, sample
 from jaxbal._src.types import Array, Scalar
 from jaxbal._src.validation import runtime_checks
 
-__all__ = ["CONSTRAINT_RTOL", "JointSolution", "TrapezoidLine", "joint_codesign", "payload_metrics"]
+__all__ = ["CONSTRAINT_RTOL", "JointSolution", "joint_codesign", "payload_metrics"]
 
 MotionFactory = Callable[[Robot, dict], Motion]
 
@@ -89,40 +86,6 @@ class JointSolution(NamedTuple):
     steps: Array
     grad_norm: Scalar
     history: Array
-
-
-def end_effector_path(robot: Robot, line):
-    """Default path of :class:`TrapezoidLine`: the end-effector on the straight line."""
-    return EndEffectorLine(robot, line)
-
-
-class TrapezoidLine(eqx.Module):
-    """Motion factory: end-effector straight line, trapezoidal acceleration profile.
-
-    ``θ = {"u2": u2, "ratio": u1/u2}`` (so ``0 < u1 ≤ u2 < 1/2`` whenever ``0 < ratio
-    ≤ 1`` and ``0 < u2 < 1/2``); bang-bang is ``ratio → 0, u2 → 1/2``. The cycle time is
-    ``times[-1]``.
-
-    Attributes:
-        start, end: end-effector poses (as ``robot.inverse_kinematics`` takes them).
-        times: ``(t,)`` sample instants [s], from 0 to the cycle time.
-        path: static ``path(robot, StraightLine) -> trajectory`` (default: the
-            end-effector line; a module-level function for e.g. a SCARA lift).
-
-    References:
-        Briot, Arakelian & Le Baron (2012), §2.2 (trapezoidal profile, switch times).
-    """
-
-    start: Array
-    end: Array
-    times: Array
-    path: Callable = eqx.field(static=True, default=end_effector_path)
-
-    def __call__(self, robot: Robot, theta) -> Motion:
-        u2 = theta["u2"]
-        profile = TrapezoidalAcceleration(theta["ratio"] * u2, u2)
-        line = StraightLine(self.start, self.end, profile, self.times[-1])
-        return Motion(*sample(self.path(robot, line), self.times, order=2))
 
 
 class _Joint(eqx.Module):

@@ -14,6 +14,8 @@ name                definition                                                  
 ``rms_moment``      ``sqrt(mean_t ‖m_sh(t)‖²)``                                    N·m
 ``peak_torque``     ``max_t ‖τ(t)‖``, actuator torques/forces                      N·m, N
 ``rms_torque``      ``sqrt(mean_t ‖τ(t)‖²)``                                       N·m, N
+``peak_torque_rate``  ``max_t max_i |dτ_i/dt|``, per actuator (Briot 2012 eq 6);   N·m/s,
+                    needs a :class:`JerkMotion`                                    N/s
 ``added_mass``      sum of the design variables ``counter_mass`` and               kg
                     ``vertical_counterweight``
 ``added_inertia``   ``J_z(robot) − J_z(robot without counter-masses)`` at the      kg·m²
@@ -64,6 +66,7 @@ __all__ = [
     "Motion",
     "added_inertia",
     "added_mass",
+    "JerkMotion",
     "as_motion",
     "base_inertia",
     "check_design_names",
@@ -73,6 +76,7 @@ __all__ = [
     "peak_force",
     "peak_moment",
     "peak_torque",
+    "peak_torque_rate",
     "resolve_metric",
     "rms_force",
     "rms_moment",
@@ -88,6 +92,20 @@ class Motion(NamedTuple):
     qdd: Float[Array, "t dof"]
 
 
+class JerkMotion(NamedTuple):
+    """A sampled joint motion with its jerk: ``q``, ``q̇``, ``q̈``, ``q⃛``, each ``(t, dof)``.
+
+    Every metric takes it (the jerk is ignored where not needed); the torque-rate
+    metric :func:`peak_torque_rate` needs it. Built by ``motion_samples(..., order=3)``
+    or a motion factory with ``order=3``.
+    """
+
+    q: Float[Array, "t dof"]
+    qd: Float[Array, "t dof"]
+    qdd: Float[Array, "t dof"]
+    qddd: Float[Array, "t dof"]
+
+
 #: a metric: a name of :data:`METRICS` or a callable ``(robot, motion) -> scalar``.
 Metric = str | Callable[[Robot, Motion], Scalar]
 
@@ -99,8 +117,8 @@ ADDED_MASS_VARIABLES = ("counter_mass", "vertical_counterweight")
 
 
 @eqx.filter_jit
-def _sample(trajectory, times):
-    return sample(trajectory, times, order=2)
+def _sample(trajectory, times, order=2):
+    return sample(trajectory, times, order=order)
 
 
 @eqx.filter_jit
@@ -108,7 +126,7 @@ def _valid(robot, q, qd, qdd):
     return jax.vmap(lambda a, b, c: state_valid(robot, a, b, c))(q, qd, qdd)
 
 
-def motion_samples(robot: Robot, trajectories, times) -> Motion:
+def motion_samples(robot: Robot, trajectories, times, order: int = 2) -> Motion | JerkMotion:
     """Exact ``(q, q̇, q̈)`` of one or several trajectories, stacked into one :class:`Motion`.
 
     Args:
@@ -117,9 +135,12 @@ def motion_samples(robot: Robot, trajectories, times) -> Motion:
             of them.
         times: ``(t,)`` instants [s], shared by every trajectory, or a list with one
             array per trajectory.
+        order: 2, or 3 for a :class:`JerkMotion` (the jerk ``q⃛`` too, for the
+            torque-rate metric).
 
     Returns:
-        A :class:`Motion` with ``Σ t_k`` rows, in the order of the trajectories.
+        A :class:`Motion` (or :class:`JerkMotion`) with ``Σ t_k`` rows, in the order of
+        the trajectories.
 
     Raises:
         ValueError: eagerly, when a sampled state violates the robot's loop closures
@@ -130,6 +151,8 @@ def motion_samples(robot: Robot, trajectories, times) -> Motion:
     trajectories = list(trajectories)
     if not trajectories:
         raise ValueError("motion_samples needs at least one trajectory")
+    if order not in (2, 3):
+        raise ValueError(f"order must be 2 (q, q̇, q̈) or 3 (with the jerk), got {order!r}")
     if isinstance(times, list | tuple) and times and np.ndim(times[0]) >= 1:
         times = [jnp.asarray(t, dtype=float) for t in times]
         if len(times) != len(trajectories):
@@ -141,14 +164,16 @@ def motion_samples(robot: Robot, trajectories, times) -> Motion:
         if instants.ndim != 1:
             raise ValueError(f"times must have shape (t,), got {instants.shape}")
         # A lambda or closure as a pytree: an equivalent new one reuses the compilation.
-        q, qd, qdd = _sample(as_pytree(trajectory), instants)
+        q, qd, qdd, *jerk = _sample(as_pytree(trajectory), instants, order)
         raise_if_invalid(
             _valid(robot, q, qd, qdd),
             f"trajectory leaves the loop closures of {type(robot).__name__} (or is not "
             "finite) at t [s]",
             instants,
         )
-        parts.append(Motion(q, qd, qdd))
+        parts.append(JerkMotion(q, qd, qdd, *jerk) if jerk else Motion(q, qd, qdd))
+    if jerk:
+        return JerkMotion(*(jnp.concatenate([p[k] for p in parts]) for k in range(4)))
     return as_motion(parts)
 
 
@@ -157,6 +182,8 @@ def as_motion(motions) -> Motion:
     (concatenated along time)."""
     if isinstance(motions, Motion):
         return motions
+    if isinstance(motions, JerkMotion):
+        return Motion(motions.q, motions.qd, motions.qdd)
     if isinstance(motions, tuple) and len(motions) == 3 and not isinstance(motions[0], tuple):
         return Motion(*(jnp.asarray(v, dtype=float) for v in motions))
     parts = [as_motion(m) for m in motions]
@@ -168,22 +195,23 @@ def as_motion(motions) -> Motion:
 # --- metrics -----------------------------------------------------------------------------
 
 
-def _batched(evaluate, robot: Robot, motion: Motion, what: str):
-    """``evaluate(robot, q, qd, qdd)`` at every sample of the motion (``vmap``).
+def _batched(evaluate, robot: Robot, motion: Motion, what: str, jerk: bool = False):
+    """``evaluate(robot, q, qd, qdd)`` at every sample of the motion (``vmap``);
+    ``evaluate(robot, q, qd, qdd, qddd)`` with ``jerk`` (``motion`` a JerkMotion).
 
     An eager call checks the values first and raises ``ValueError``: inside ``vmap`` the
     runtime checks would surface as a JAX-internal callback error (``INTERNAL:
     CpuCallback error``) instead of naming the offending value.
     """
-    motion = as_motion(motion)
+    motion = motion if jerk else as_motion(motion)
     if is_traced(robot, motion):
-        return jax.vmap(lambda q, qd, qdd: evaluate(robot, q, qd, qdd))(*motion)
+        return jax.vmap(lambda *state: evaluate(robot, *state))(*motion)
     checked_parameters(robot, checked_bodies(robot, None))
     finite = jnp.all(jnp.isfinite(jnp.concatenate(motion, axis=-1)), axis=-1)
     raise_if_invalid(finite, "non-finite state (q, qd, qdd) in the motion at samples",
                      jnp.arange(finite.shape[0]))  # fmt: skip
     with runtime_checks(False):  # checked above and below, eagerly
-        out = jax.vmap(lambda q, qd, qdd: evaluate(robot, q, qd, qdd))(*motion)
+        out = jax.vmap(lambda *state: evaluate(robot, *state))(*motion)
     return checked_finite(what, robot, out)
 
 
@@ -239,6 +267,37 @@ def peak_torque(robot: Robot, motion: Motion) -> Scalar:
 def rms_torque(robot: Robot, motion: Motion) -> Scalar:
     """RMS norm of the actuator torque/force vector ``sqrt(mean_t ‖τ(t)‖²)`` [N·m, N]."""
     return _rms(_torques(robot, motion))
+
+
+def torque_rate(robot: Robot, q, qd, qdd, qddd) -> Array:
+    """Actuator torque rates ``dτ/dt = ∂τ/∂q·q̇ + ∂τ/∂q̇·q̈ + ∂τ/∂q̈·q⃛`` [N·m/s, N/s]
+    at one state (one ``jvp`` of :func:`jaxbal.actuator_torques`; closed chains
+    included)."""
+
+    def torques(a, b, c):
+        return actuator_torques(robot, a, b, c)
+
+    return jax.jvp(torques, (q, qd, qdd), (qd, qdd, qddd))[1]
+
+
+def peak_torque_rate(robot: Robot, motion: JerkMotion) -> Scalar:
+    """Peak actuator torque rate ``max_t max_i |dτ_i/dt|`` [N·m/s, N/s], the quantity
+    limited for every actuator in Briot et al. (2012), eqs (5)-(6).
+
+    The peak is over the motion's samples: the rate jumps where the jerk does (at a
+    trapezoid's switch times), so sample densely enough to catch a short ramp.
+
+    Raises:
+        ValueError: ``motion`` is not a :class:`JerkMotion` (no jerk to differentiate
+            the torques along).
+    """
+    if not isinstance(motion, JerkMotion):
+        raise ValueError(
+            "peak_torque_rate needs the jerk: give a JerkMotion (motion_samples(..., "
+            f"order=3) or a motion factory with order=3), got {type(motion).__name__}"
+        )
+    rates = _batched(torque_rate, robot, motion, "actuator torque rates", jerk=True)
+    return jnp.max(jnp.abs(rates))
 
 
 def added_mass(robot: Robot, motion: Motion | None = None) -> Scalar:
@@ -300,6 +359,7 @@ METRICS: dict[str, Callable[[Robot, Motion], Scalar]] = {
     "rms_moment": rms_moment,
     "peak_torque": peak_torque,
     "rms_torque": rms_torque,
+    "peak_torque_rate": peak_torque_rate,
     "added_mass": added_mass,
     "added_inertia": added_inertia,
 }

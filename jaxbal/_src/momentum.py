@@ -72,24 +72,41 @@ def _parameters(robot: Robot) -> list[tuple[str, Array]]:
 
 
 def checked_parameters(robot: Robot, value):
-    """``value``, guarded by every floating-point parameter of the robot being finite.
+    """``value``, guarded by every floating-point parameter of the robot being finite,
+    and the fields in the class's ``nonnegative_parameters`` (lengths, masses,
+    inertias) being ``>= 0`` to :data:`ROUNDING` (so that a subnormal ``-1e-309``,
+    flushed to zero in compiled code, is judged alike eagerly and under ``jit``).
 
     The body checks (:func:`checked_bodies`) see masses and inertias only; a NaN length
-    set with ``eqx.tree_at`` gave a silent NaN wrench, centre of mass or torque. Eagerly
-    a ``ValueError`` naming the parameters (``PlanarArm.lengths``); under ``jit`` a
-    runtime error (:func:`jaxbal.set_runtime_checks`).
+    set with ``eqx.tree_at`` gave a silent NaN wrench, centre of mass or torque, and a
+    negative one a mirrored link. Eagerly a ``ValueError`` naming the parameters
+    (``PlanarArm.lengths``) and their values; under ``jit`` a runtime error
+    (:func:`jaxbal.set_runtime_checks`).
     """
     parameters = _parameters(robot)
+    prefix = type(robot).__name__ + "."
+    signed = [
+        (prefix + name, jnp.asarray(getattr(robot, name)))
+        for name in getattr(type(robot), "nonnegative_parameters", ())
+    ]
     if not parameters:
         return value
     message = "robot parameters must be finite"
-    if not is_traced([x for _, x in parameters]):
+    negative = "robot parameters must be >= 0"
+    if not is_traced([x for _, x in parameters], [x for _, x in signed]):
         bad = {n: np.asarray(x).tolist() for n, x in parameters if not np.all(np.isfinite(x))}
         if bad:
             raise ValueError(f"{message}: {bad}")
+        bad = {n: np.asarray(x).tolist() for n, x in signed if np.any(np.asarray(x) < -ROUNDING)}
+        if bad:
+            raise ValueError(f"{negative}: {bad}")
         return value
     invalid = jnp.stack([~jnp.all(jnp.isfinite(x)) for _, x in parameters])
-    return guard(value, invalid, message, invalid)
+    value = guard(value, invalid, message, invalid)
+    if signed:
+        invalid = jnp.stack([jnp.any(x < -ROUNDING) for _, x in signed])
+        value = guard(value, invalid, negative, invalid)
+    return value
 
 
 def checked_finite(what: str, robot: Robot, value):

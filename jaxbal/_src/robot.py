@@ -142,6 +142,10 @@ class Robot(eqx.Module):
     branch_size: ClassVar[int] = 1
     #: dimension of the COM that planning steers (2: x, y of a planar motion; 3: x, y, z).
     com_dims: ClassVar[int] = 3
+    #: fields whose entries are physically >= 0 (lengths, masses, inertias). The shared
+    #: physics checks them on the robot as it is evaluated, so a value set with
+    #: ``eqx.tree_at`` or by an optimiser is refused too (not only by the constructor).
+    nonnegative_parameters: ClassVar[tuple[str, ...]] = ()
 
     @abc.abstractmethod
     def mass_properties(self) -> Bodies:

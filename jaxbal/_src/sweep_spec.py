@@ -130,8 +130,8 @@ def _pose(table: dict, key: str):
 def _motion(robot, table: dict):
     import jax.numpy as jnp
 
-    from jaxbal._src.joint_codesign import TrapezoidLine
     from jaxbal._src.metrics import motion_samples
+    from jaxbal._src.motion_factories import TrapezoidLine
     from jaxbal._src.planning import EndEffectorLine
     from jaxbal._src.profiles import BangBang, Quintic
     from jaxbal._src.trajectory import StraightLine, sample_times

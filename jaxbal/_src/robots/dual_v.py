@@ -102,6 +102,10 @@ class DualV(PlanarRobot):
 
     branch_size = 4
     design_fields = {"payload": "payload"}  # counter-masses: see design()/with_design()
+    nonnegative_parameters = (
+        *("a", "b", "l1", "l2", "m1", "m2", "m5", "payload", "m_cm", "m_tun"),
+        *("inertia_cm", "inertia1", "inertia2", "inertia5", "inertia_act"),
+    )
 
     l1: Float[Array, "4"]
     l2: Float[Array, "4"]
@@ -132,10 +136,8 @@ class DualV(PlanarRobot):
         check_shape("inertia_act", self.inertia_act, (4,))
         for name in ("a", "b", "m5", "inertia5", "payload"):
             check_shape(name, getattr(self, name), ())
-        for name in ("l1", "l2", "m1", "m2", "m5", "payload", "m_cm", "m_tun", "inertia_cm"):
+        for name in self.nonnegative_parameters:
             check_nonnegative(f"DualV.{name}", getattr(self, name))
-        check_nonnegative("DualV.inertia1", self.inertia1)
-        check_nonnegative("DualV.inertia2", self.inertia2)
         check_nonnegative("DualV.m_cm - m_tun (brass part)", self.m_cm - self.m_tun)
 
     @property

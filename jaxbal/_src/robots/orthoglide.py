@@ -109,6 +109,10 @@ class Orthoglide(Robot):
 
     branch_size = 3
     design_fields = {"counter_mass": "counter_masses", "payload": "payload"}
+    nonnegative_parameters = (
+        *("length", "parallelogram_mass", "slider_mass", "platform_mass"),
+        *("parallelogram_inertia", "payload", "counter_masses"),
+    )
 
     length: Float[Array, ""]
     slider_offset: Float[Array, ""]
@@ -141,7 +145,6 @@ class Orthoglide(Robot):
         self.payload = jnp.asarray(payload, dtype=float)
         self.counter_masses = jnp.asarray(counter_masses, dtype=float)
         check_shape("counter_masses", self.counter_masses, (3,))
-        check_nonnegative("Orthoglide.counter_masses", self.counter_masses)
         for name in (
             "length",
             "slider_offset",
@@ -152,14 +155,7 @@ class Orthoglide(Robot):
             "payload",
         ):
             check_shape(name, getattr(self, name), ())
-        for name in (
-            "length",
-            "parallelogram_mass",
-            "slider_mass",
-            "platform_mass",
-            "parallelogram_inertia",
-            "payload",
-        ):
+        for name in self.nonnegative_parameters:
             check_nonnegative(f"Orthoglide.{name}", getattr(self, name))
 
     @property

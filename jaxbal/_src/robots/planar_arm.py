@@ -67,6 +67,7 @@ class PlanarArm(PlanarRobot):
         "counter_distance": "counter_distances",
         "payload": "payload",
     }
+    nonnegative_parameters = ("lengths", "masses", "inertias", "payload", "counter_masses")
 
     lengths: Float[Array, " n"]
     com_ratios: Float[Array, " n"]
@@ -104,7 +105,7 @@ class PlanarArm(PlanarRobot):
         for name in ("com_ratios", "masses", "inertias", "counter_masses", "counter_distances"):
             check_shape(name, getattr(self, name), (n,))
         check_shape("payload", self.payload, ())
-        for name in ("lengths", "masses", "inertias", "payload", "counter_masses"):
+        for name in self.nonnegative_parameters:
             check_nonnegative(f"PlanarArm.{name}", getattr(self, name))
 
     @property

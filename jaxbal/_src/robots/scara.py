@@ -96,6 +96,10 @@ class Scara(Robot):
         "vertical_counterweight": "vertical_counterweight",
         "payload": "payload",
     }
+    nonnegative_parameters = (
+        *("lengths", "masses", "inertias", "payload", "counter_masses"),
+        "vertical_counterweight",
+    )
 
     lengths: Float[Array, "2"]
     com_offsets: Float[Array, "3"]
@@ -130,9 +134,8 @@ class Scara(Robot):
             check_shape(name, getattr(self, name), (3,))
         check_shape("payload", self.payload, ())
         check_shape("vertical_counterweight", self.vertical_counterweight, ())
-        for name in ("lengths", "masses", "inertias", "payload", "counter_masses"):
+        for name in self.nonnegative_parameters:
             check_nonnegative(f"Scara.{name}", getattr(self, name))
-        check_nonnegative("Scara.vertical_counterweight", self.vertical_counterweight)
 
     @property
     def dof(self) -> int:

@@ -1,0 +1,191 @@
+"""Motion factories ``motion(robot, θ) -> Motion``: trajectories whose parameters ``θ``
+are optimised with the counter-masses (:func:`jaxbal.design.joint_codesign`).
+
+Two factories, one parametrisation of the profile:
+
+* :class:`TrapezoidLine` -- the end-effector on a straight line;
+* :class:`ComTrapezoid` -- the robot's total centre of mass on a straight line (the
+  COM planning of Briot et al. 2012 and Geng et al. 2021), the free pose coordinates
+  (φ of the 3R) following a boundary polynomial with free coefficients.
+
+``θ`` always holds ``"u2"`` and ``"ratio"`` (the trapezoid's switch times, ``u1 =
+ratio·u2``, so that ``0 < u1 ≤ u2 < 1/2`` whenever ``0 < ratio ≤ 1`` and ``0 < u2 <
+1/2``). Optional entries:
+
+* ``"duration"`` -- the cycle time ``T`` [s]: the samples are ``times/times[-1]·T``;
+  its bounds in ``joint_codesign`` are the cycle-time constraint;
+* ``"phi"`` (:class:`ComTrapezoid` only) -- ``(K,)`` free coefficients of the law of
+  the free coordinates (degree ``5 + K``; the paper's φ law is degree 8, ``K = 3``,
+  eq 20); absent: they follow the end-effector line's profile.
+
+With ``order=3`` the factory returns a :class:`~jaxbal.design.JerkMotion` (the jerk
+``q⃛`` too), which the torque-rate metric needs (Briot et al. 2012, eqs 5-6).
+
+References:
+    Briot, Arakelian & Le Baron (2012), eqs (3), (5)-(6), (19)-(20), §2.2.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import equinox as eqx
+import jax.numpy as jnp
+
+from jaxbal._src.metrics import JerkMotion, Motion
+from jaxbal._src.momentum import body_com_positions
+from jaxbal._src.planning import EndEffectorLine, com_line
+from jaxbal._src.profiles import BoundaryPolynomial, TrapezoidalAcceleration
+from jaxbal._src.robot import Robot
+from jaxbal._src.trajectory import StraightLine, sample
+from jaxbal._src.types import Array
+from jaxbal._src.validation import guard
+
+__all__ = ["JOIN_TOLERANCE", "ComTrapezoid", "TrapezoidLine", "end_effector_path"]
+
+#: a COM plan must start and end at its configurations to this tolerance on every
+#: body's centre-of-mass position [m].
+JOIN_TOLERANCE = 1e-8
+
+
+def end_effector_path(robot: Robot, line):
+    """Default path of :class:`TrapezoidLine`: the end-effector on the straight line."""
+    return EndEffectorLine(robot, line)
+
+
+def _profile(theta) -> TrapezoidalAcceleration:
+    u2 = theta["u2"]
+    return TrapezoidalAcceleration(theta["ratio"] * u2, u2)
+
+
+def _times(times: Array, theta) -> Array:
+    """The sample instants [s]: ``times``, rescaled to ``θ["duration"]`` if given."""
+    if "duration" not in theta:
+        return times
+    duration = jnp.asarray(theta["duration"], dtype=float)
+    duration = guard(
+        duration,
+        ~(jnp.isfinite(duration) & (duration > 0)),
+        "trajectory 'duration' (cycle time) must be finite and > 0 [s]",
+        duration,
+    )
+    return times / times[-1] * duration
+
+
+@eqx.filter_jit
+def _sample(path, times, order: int):
+    # compiled when called eagerly (nested jvp op by op is slow); inlined under a trace
+    return sample(path, times, order=order)
+
+
+def _sampled(path, times, order: int):
+    if order == 2:
+        return Motion(*_sample(path, times, 2))
+    return JerkMotion(*_sample(path, times, 3))
+
+
+def _joins(robot: Robot, motion, q_start, q_end):
+    """``motion``, guarded by starting at ``q_start`` and ending at ``q_end`` (the same
+    body positions, so angles differing by 2π agree): a COM inverse kinematics on
+    another branch than these configurations' would make the move jump."""
+
+    def gap(q, target):
+        bodies = body_com_positions(robot, q) - body_com_positions(robot, target)
+        return jnp.max(jnp.abs(bodies))
+
+    gaps = jnp.stack([gap(motion.q[0], q_start), gap(motion.q[-1], q_end)])
+    message = (
+        "ComTrapezoid: the COM plan does not start at q_start / end at q_end [m]; give "
+        "the branch of the COM inverse kinematics these configurations are on"
+    )
+    return guard(motion, ~(gaps <= JOIN_TOLERANCE), message, gaps)
+
+
+def _check_order(order: int) -> None:
+    if order not in (2, 3):
+        raise ValueError(f"order must be 2 (q, q̇, q̈) or 3 (with the jerk), got {order!r}")
+
+
+class TrapezoidLine(eqx.Module):
+    """Motion factory: end-effector straight line, trapezoidal acceleration profile.
+
+    ``θ = {"u2", "ratio"[, "duration"]}`` (module doc); bang-bang is ``ratio → 0, u2 →
+    1/2``. The cycle time is ``times[-1]`` unless ``θ`` has a ``"duration"``.
+
+    Attributes:
+        start, end: end-effector poses (as ``robot.inverse_kinematics`` takes them).
+        times: ``(t,)`` sample instants [s], from 0 to the cycle time.
+        path: static ``path(robot, StraightLine) -> trajectory`` (default: the
+            end-effector line; a module-level function for e.g. a SCARA lift).
+        order: static, 2 (a :class:`Motion`) or 3 (a :class:`JerkMotion`).
+
+    References:
+        Briot, Arakelian & Le Baron (2012), §2.2 (trapezoidal profile, switch times).
+    """
+
+    start: Array
+    end: Array
+    times: Array
+    path: Callable = eqx.field(static=True, default=end_effector_path)
+    order: int = eqx.field(static=True, default=2)
+
+    def __check_init__(self):
+        _check_order(self.order)
+
+    def __call__(self, robot: Robot, theta) -> Motion | JerkMotion:
+        times = _times(self.times, theta)
+        line = StraightLine(self.start, self.end, _profile(theta), times[-1])
+        return _sampled(self.path(robot, line), times, self.order)
+
+
+class ComTrapezoid(eqx.Module):
+    """Motion factory: the total COM on a straight line with a trapezoidal profile.
+
+    The COM goes from ``x_S(q_start)`` to ``x_S(q_end)`` (eq 3), both computed for the
+    candidate robot, so the move joins the same two configurations whatever the
+    counter-masses. The pose coordinates beyond the COM (φ of the 3R, θ5 of the DUAL-V,
+    φ and z of the SCARA) go from their start to their end value with a
+    :class:`~jaxbal.profiles.BoundaryPolynomial` of free coefficients ``θ["phi"]``
+    (zero velocity and acceleration at both ends for every coefficient, eq 20), or,
+    without ``"phi"``, with the COM's profile.
+
+    Attributes:
+        q_start, q_end: ``(dof,)`` start and end configurations.
+        times: ``(t,)`` sample instants [s], from 0 to the cycle time.
+        branch: static working mode of the COM inverse kinematics (default: the
+            robot's); it must be the branch of ``q_start`` and ``q_end``, else the move
+            would jump: a plan that does not start at ``q_start`` and end at ``q_end``
+            (every body's COM within :data:`JOIN_TOLERANCE`) is refused, eagerly by a
+            ``ValueError``, under ``jit`` by a runtime error.
+        order: static, 2 (a :class:`Motion`) or 3 (a :class:`JerkMotion`).
+
+    References:
+        Briot, Arakelian & Le Baron (2012), eqs (3), (19)-(20);
+        Geng et al. (2021) (COM planning of the Orthoglide).
+    """
+
+    q_start: Array
+    q_end: Array
+    times: Array
+    branch: tuple[int, ...] | int | None = eqx.field(static=True, default=None)
+    order: int = eqx.field(static=True, default=2)
+
+    def __check_init__(self):
+        _check_order(self.order)
+
+    def __call__(self, robot: Robot, theta) -> Motion | JerkMotion:
+        times = _times(self.times, theta)
+        duration = times[-1]
+        profile = _profile(theta)
+        free = None
+        if "phi" in theta:
+            d = robot.com_dims
+            pose = (robot.end_effector(self.q_start)[d:], robot.end_effector(self.q_end)[d:])
+            if pose[0].shape[0] == 0:
+                raise ValueError(
+                    f"θ['phi']: {type(robot).__name__} has no pose coordinate beyond its "
+                    f"{d} COM coordinates for a free law to steer"
+                )
+            free = StraightLine(pose[0], pose[1], BoundaryPolynomial(theta["phi"]), duration)
+        path = com_line(robot, self.q_start, self.q_end, profile, duration, free, self.branch)
+        return _joins(robot, _sampled(path, times, self.order), self.q_start, self.q_end)
