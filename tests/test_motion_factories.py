@@ -160,3 +160,22 @@ def test_joint_codesign_holds_a_torque_rate_limit_and_a_cycle_time(arm):
     after = float(peak_force(arm, move(arm, solution.trajectory)))
     assert after < float(peak_force(arm, move(arm, theta)))
     assert np.isfinite(float(solution.grad_norm))
+
+
+def test_phase_samples_give_the_planning_torque_rate(arm):
+    """``per_phase`` samples inside the jerk phases: the COM trapezoid's peak rate equals
+    that of the rate-limited planning of Briot et al. (eqs 5-6, serial closed form) on
+    the same instants."""
+    from jaxbal.planning import peak_torque_rate as planning_rate
+    from jaxbal.robots.planar_arm_studies import ComPath
+
+    q_a = arm.inverse_kinematics(START, branch=-1)
+    q_b = arm.inverse_kinematics(END, branch=-1)
+    theta = {"u2": 0.45, "ratio": 0.01}  # u1 = 2.25 ms, inside the first 25 ms sample gap
+    profile = TrapezoidalAcceleration(0.0045, 0.45)
+    coms = [jaxbal.center_of_mass(arm, q)[:2] for q in (q_a, q_b)]
+    reference = planning_rate(arm, ComPath(CYCLE, 1), (arm, *coms), profile, CYCLE, 21, 16)
+    times = jaxbal.sample_times(CYCLE, 21)
+    rate = eqx.filter_jit(peak_torque_rate)
+    dense = ComTrapezoid(q_a, q_b, times, branch=1, order=3, per_phase=16)(arm, theta)
+    np.testing.assert_allclose(float(rate(arm, dense)), float(reference), rtol=1e-10)

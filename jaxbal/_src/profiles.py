@@ -107,6 +107,14 @@ class TrapezoidalAcceleration(Profile):
         value = self._checked(self._shape(u) / self._shape(jnp.asarray(1.0)))
         return _checked_time(self, u, value)
 
+    def jerk_phases(self) -> tuple[Float[Array, "3"], Float[Array, "3"]]:
+        """Starts and widths ``(3,)`` each (fractions of the duration) of the three
+        phases of non-zero jerk, ``[0, u1]``, ``[u2, 1 − u2]``, ``[1 − u1, 1]``: the
+        actuator torque rate jumps at their ends, so sample inside them to see it."""
+        u1, u2 = self.u1, self.u2
+        starts = jnp.stack([jnp.zeros_like(u1), u2, 1.0 - u1])
+        return starts, jnp.stack([u1, 1.0 - 2.0 * u2, u1])
+
     def _checked(self, value):
         """``value``, guarded by ``0 < u1 ≤ u2 < 1/2`` (finite) where the profile is used."""
         switches = jnp.stack([self.u1, self.u2])

@@ -41,9 +41,7 @@ class RateLimitedPlan(NamedTuple):
 
 
 def _sample_times(profile: TrapezoidalAcceleration, duration, uniform: int, per_phase: int):
-    u1, u2 = profile.u1, profile.u2
-    phases = jnp.stack([jnp.zeros_like(u1), u2, 1.0 - u1])
-    widths = jnp.stack([u1, 1.0 - 2.0 * u2, u1])
+    phases, widths = profile.jerk_phases()
     inner = jnp.linspace(0.0, 1.0 - 1e-9, per_phase)
     dense = (phases[:, None] + widths[:, None] * inner[None, :]).reshape(-1)
     grid = jnp.linspace(0.0, 1.0, uniform)
