@@ -37,12 +37,12 @@ from collections.abc import Callable
 import equinox as eqx
 import jax.numpy as jnp
 
-from jaxbal._src.metrics import JerkMotion, Motion
 from jaxbal._src.momentum import body_com_positions
+from jaxbal._src.motion_samples import JerkMotion, Motion, _sample
 from jaxbal._src.planning import EndEffectorLine, com_line
 from jaxbal._src.profiles import BoundaryPolynomial, TrapezoidalAcceleration
 from jaxbal._src.robot import Robot
-from jaxbal._src.trajectory import StraightLine, sample
+from jaxbal._src.trajectory import StraightLine
 from jaxbal._src.types import Array
 from jaxbal._src.validation import guard
 
@@ -87,13 +87,9 @@ def _with_phases(times: Array, profile: TrapezoidalAcceleration, per_phase: int)
     return jnp.concatenate([times, dense * times[-1]])
 
 
-@eqx.filter_jit
-def _sample(path, times, order: int):
-    # compiled when called eagerly (nested jvp op by op is slow); inlined under a trace
-    return sample(path, times, order=order)
-
-
 def _sampled(path, times, order: int):
+    # _sample is compiled when called eagerly (nested jvp op by op is slow); inlined
+    # under a trace
     if order == 2:
         return Motion(*_sample(path, times, 2))
     return JerkMotion(*_sample(path, times, 3))

@@ -102,10 +102,8 @@ class DualV(PlanarRobot):
 
     branch_size = 4
     design_fields = {"payload": "payload"}  # counter-masses: see design()/with_design()
-    nonnegative_parameters = (
-        *("a", "b", "l1", "l2", "m1", "m2", "m5", "payload", "m_cm", "m_tun"),
-        *("inertia_cm", "inertia1", "inertia2", "inertia5", "inertia_act"),
-    )
+    nonnegative_parameters = ("a", "b", "l1", "l2", "m1", "m2", "m5", "payload", "m_cm", "m_tun",
+        "inertia_cm", "inertia1", "inertia2", "inertia5", "inertia_act")  # fmt: skip
 
     l1: Float[Array, "4"]
     l2: Float[Array, "4"]

@@ -1,0 +1,120 @@
+"""Sampled joint motions: :class:`Motion` ``(q, q̇, q̈)`` and :class:`JerkMotion` (with
+``q⃛``), built from trajectories by :func:`motion_samples` (exact derivatives, loop
+closures checked) and concatenated by :func:`as_motion`.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxbal._src.callables import as_pytree
+from jaxbal._src.motion import state_valid
+from jaxbal._src.robot import Robot
+from jaxbal._src.trajectory import sample
+from jaxbal._src.types import Array, Float
+from jaxbal._src.validation import raise_if_invalid
+
+__all__ = ["JerkMotion", "Motion", "as_motion", "motion_samples"]
+
+
+class Motion(NamedTuple):
+    """A sampled joint motion: ``q``, ``q̇``, ``q̈``, each ``(t, dof)`` [rad or m, per s, per s²]."""
+
+    q: Float[Array, "t dof"]
+    qd: Float[Array, "t dof"]
+    qdd: Float[Array, "t dof"]
+
+
+class JerkMotion(NamedTuple):
+    """A sampled joint motion with its jerk: ``q``, ``q̇``, ``q̈``, ``q⃛``, each ``(t, dof)``.
+
+    Every metric takes it (the jerk is ignored where not needed); the torque-rate
+    metric :func:`peak_torque_rate` needs it. Built by ``motion_samples(..., order=3)``
+    or a motion factory with ``order=3``.
+    """
+
+    q: Float[Array, "t dof"]
+    qd: Float[Array, "t dof"]
+    qdd: Float[Array, "t dof"]
+    qddd: Float[Array, "t dof"]
+
+
+@eqx.filter_jit
+def _sample(trajectory, times, order=2):
+    return sample(trajectory, times, order=order)
+
+
+@eqx.filter_jit
+def _valid(robot, q, qd, qdd):
+    return jax.vmap(lambda a, b, c: state_valid(robot, a, b, c))(q, qd, qdd)
+
+
+def motion_samples(robot: Robot, trajectories, times, order: int = 2) -> Motion | JerkMotion:
+    """Exact ``(q, q̇, q̈)`` of one or several trajectories, stacked into one :class:`Motion`.
+
+    Args:
+        robot: the robot the trajectories belong to (for the loop-closure check).
+        trajectories: a callable ``t ↦ q`` (coordinates of all bodies), or a sequence
+            of them.
+        times: ``(t,)`` instants [s], shared by every trajectory, or a list with one
+            array per trajectory.
+        order: 2, or 3 for a :class:`JerkMotion` (the jerk ``q⃛`` too, for the
+            torque-rate metric).
+
+    Returns:
+        A :class:`Motion` (or :class:`JerkMotion`) with ``Σ t_k`` rows, in the order of
+        the trajectories.
+
+    Raises:
+        ValueError: eagerly, when a sampled state violates the robot's loop closures
+            (or is not finite); the message names the offending instants.
+    """
+    if callable(trajectories):
+        trajectories = [trajectories]
+    trajectories = list(trajectories)
+    if not trajectories:
+        raise ValueError("motion_samples needs at least one trajectory")
+    if order not in (2, 3):
+        raise ValueError(f"order must be 2 (q, q̇, q̈) or 3 (with the jerk), got {order!r}")
+    if isinstance(times, list | tuple) and times and np.ndim(times[0]) >= 1:
+        times = [jnp.asarray(t, dtype=float) for t in times]
+        if len(times) != len(trajectories):
+            raise ValueError(f"got {len(times)} time arrays for {len(trajectories)} trajectories")
+    else:
+        times = [jnp.asarray(times, dtype=float)] * len(trajectories)
+    parts = []
+    for trajectory, instants in zip(trajectories, times, strict=True):
+        if instants.ndim != 1:
+            raise ValueError(f"times must have shape (t,), got {instants.shape}")
+        # A lambda or closure as a pytree: an equivalent new one reuses the compilation.
+        q, qd, qdd, *jerk = _sample(as_pytree(trajectory), instants, order)
+        raise_if_invalid(
+            _valid(robot, q, qd, qdd),
+            f"trajectory leaves the loop closures of {type(robot).__name__} (or is not "
+            "finite) at t [s]",
+            instants,
+        )
+        parts.append(JerkMotion(q, qd, qdd, *jerk) if jerk else Motion(q, qd, qdd))
+    if jerk:
+        return JerkMotion(*(jnp.concatenate([p[k] for p in parts]) for k in range(4)))
+    return as_motion(parts)
+
+
+def as_motion(motions) -> Motion:
+    """One :class:`Motion` from a Motion, a ``(q, q̇, q̈)`` tuple or a sequence of them
+    (concatenated along time)."""
+    if isinstance(motions, Motion):
+        return motions
+    if isinstance(motions, JerkMotion):
+        return Motion(motions.q, motions.qd, motions.qdd)
+    if isinstance(motions, tuple) and len(motions) == 3 and not isinstance(motions[0], tuple):
+        return Motion(*(jnp.asarray(v, dtype=float) for v in motions))
+    parts = [as_motion(m) for m in motions]
+    if not parts:
+        raise ValueError("need at least one motion")
+    return Motion(*(jnp.concatenate([p[k] for p in parts]) for k in range(3)))
