@@ -93,6 +93,7 @@ def test_torque_rate_needs_the_jerk(arm):
         TrapezoidLine(START, END, jaxbal.sample_times(CYCLE, 8), order=4)
 
 
+@pytest.mark.slow
 def test_jerk_motion_gives_the_same_other_metrics(arm):
     times = jaxbal.sample_times(CYCLE, 12)
     two = TrapezoidLine(START, END, times)(arm, THETA)
@@ -162,6 +163,7 @@ def test_joint_codesign_holds_a_torque_rate_limit_and_a_cycle_time(arm):
     assert np.isfinite(float(solution.grad_norm))
 
 
+@pytest.mark.slow
 def test_phase_samples_give_the_planning_torque_rate(arm):
     """``per_phase`` samples inside the jerk phases: the COM trapezoid's peak rate equals
     that of the rate-limited planning of Briot et al. (eqs 5-6, serial closed form) on
