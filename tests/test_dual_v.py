@@ -327,6 +327,7 @@ def test_codesign_recovers_eq1():
     np.testing.assert_allclose(design.p_cm, np.sqrt(0.026845 / 7.983), rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_triangle_published_numbers():
     """Fig 12 (smooth triangle, 82.6/71.6 m/s²): 271/235 N unbalanced, shaking moment
     16.1 / 14.2 / 14.1 N·m (unbalanced / 96.72 % / balanced); published, tol 1.5 %."""

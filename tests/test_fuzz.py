@@ -48,6 +48,7 @@ def _compiled(robot, q, qd, qdd):
     return jaxbal.shaking_wrench(robot, q, qd, qdd)
 
 
+@pytest.mark.slow
 @given(
     name=st.sampled_from(sorted(ROBOTS)),
     mass_scale=hostile,

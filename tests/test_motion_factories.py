@@ -44,6 +44,7 @@ def _torques_at(robot, path, t):
     return jaxbal.actuator_torques(robot, q, qd, qdd)
 
 
+@pytest.mark.slow
 def test_torque_rate_equals_the_closed_form(arm):
     times = jaxbal.sample_times(CYCLE, 41)
     move = TrapezoidLine(START, END, times, order=3)
@@ -113,6 +114,7 @@ def test_duration_is_the_cycle_time(arm):
         TrapezoidLine(START, END, times)(arm, {**THETA, "duration": -1.0})
 
 
+@pytest.mark.slow
 def test_com_trapezoid_keeps_the_com_on_its_line_and_joins_the_configurations():
     robot = jaxbal.robots.planar_3r()
     q_start = robot.inverse_kinematics(jnp.array([0.225, 0.25, 0.0]))

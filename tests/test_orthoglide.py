@@ -193,6 +193,7 @@ def test_counter_sliders_add_their_momentum_rate():
 # --- COM inverse kinematics ---------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_com_inverse_kinematics_round_trip_and_vmap():
     # reference: COM(COM-IK(S)) = S; vmap equals a Python loop
     robot = orthoglide(payload=2.0)
