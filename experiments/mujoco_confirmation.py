@@ -2,8 +2,11 @@
 of van der Wijk et al. 2013, Fig 6, with MuJoCo in place of Spacar), through
 :mod:`jaxbal.robots.dual_v_studies`.
 
-The base-reaction agreement of every robot is in that robot's own experiment (the
-``*_mjx`` tables, from :func:`jaxbal.mujoco.confirm`).
+The base-reaction agreement of every robot with MJX is in that robot's own experiment
+(the ``*_mjx`` tables, from :func:`jaxbal.mujoco.confirm`). Table
+``mujoco_closed_chains`` confirms the two closed chains with MuJoCo C closing their
+loops itself (only the platform pose is given; arm angles, sliders and bars are
+MuJoCo's), with gravity.
 
 Motion: two rest-to-rest quintic moves of the platform, a translation-heavy one
 (x −0.1 → 0.1 m, y −0.175 → 0.175 m, θ5 0 → 0.1 rad in 0.1 s; peak 115 m/s² along x,
@@ -19,13 +22,18 @@ import numpy as np
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
+from jaxbal.mujoco import agreement_table, confirm_cases  # noqa: E402
 from jaxbal.report import Experiment, Result, Table, save_figure  # noqa: E402
-from jaxbal.robots import dual_v  # noqa: E402
+from jaxbal.robots import OUTWARD, dual_v, orthoglide  # noqa: E402
 from jaxbal.robots.dual_v_studies import (  # noqa: E402
     QuinticMoves,
+    confirm_motions,
     open_loop_convergence,
     open_loop_tracking,
+    triangle_motion,
 )
+from jaxbal.robots.orthoglide_planning import switching_times  # noqa: E402
+from jaxbal.robots.orthoglide_studies import payload_cases  # noqa: E402
 
 WAYPOINTS = ((-0.1, -0.175, 0.0), (0.1, 0.175, 0.1), (0.1, 0.175, -0.3))  # m, m, rad
 DURATIONS = (0.1, 0.0345)  # s
@@ -36,6 +44,29 @@ COLUMNS = (("x5 [m]", "m"), ("y5 [m]", "m"), ("θ5 [rad]", "rad"))
 # (Richardson) tracking error below these bounds [m, m, rad].
 ORDER_RANGE = (1.9, 2.1)
 EXTRAPOLATED_BOUND = (1e-9, 1e-9, 1e-8)
+CLOSED_COLUMNS = {"force_rel": "force_relative", "moment_rel": "moment_relative",
+                  "joint gap [rad or m]": "closure_difference"}  # fmt: skip
+GRAVITY = np.array([0.0, 0.0, -9.81])  # m/s²
+ORTHOGLIDE_MOVE = ((0.0, 0.0, 0.0), (-0.1, 0.07, -0.11), 0.1)  # m, m, s: Geng §3
+
+
+def closed_chains() -> Table:
+    """MuJoCo C closes the DUAL-V's and the Orthoglide's loops itself: base reaction vs
+    jaxbal (relative) and the largest gap between MuJoCo's and jaxbal's joints."""
+    confirmations = confirm_motions(
+        {"balanced": dual_v(), "unbalanced": dual_v(counter_masses=False)},
+        {"DUAL-V triangle": (triangle_motion(17, 0.11), OUTWARD)},
+        engine="mujoco",
+    )
+    cases = payload_cases(orthoglide(), (0.0, 5.0), *ORTHOGLIDE_MOVE)
+    confirmations |= {
+        f"Orthoglide {name}": value
+        for name, value in confirm_cases(
+            cases, switching_times(ORTHOGLIDE_MOVE[2], 51), engine="mujoco", gravity=GRAVITY
+        ).items()
+    }
+    title = "Closed chains: jaxbal vs MuJoCo C with MuJoCo closing the loops (tolerance 1e-9)"
+    return agreement_table("mujoco_closed_chains", title, confirmations, CLOSED_COLUMNS, 1e-9)
 
 
 def run(ctx) -> Result:
@@ -105,7 +136,8 @@ error, and after extrapolation one above
 Both torque distributions give the same motion: they differ by an internal preload along
 null(Jᵀ), which the platform does not feel.
 """
-    return Result(tables=[table], figures=[figure], notes=notes)
+    ctx.progress("closed chains, MuJoCo C")
+    return Result(tables=[table, closed_chains()], figures=[figure], notes=notes)
 
 
 EXPERIMENT = Experiment(

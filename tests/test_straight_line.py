@@ -98,6 +98,32 @@ def test_structural_and_fallback_primitives():
     check_grads(jax.jit(straight_line(mixed)), (x[1], y[1]), order=1, modes=["rev"])
 
 
+def test_reductions_over_empty_axes_give_the_identity():
+    """jnp.all/any/sum/prod/max/min over zero elements (an MJCF robot without loops or
+    parameters to check) equal XLA's own result, as in the plain evaluation."""
+
+    def empty(x):
+        none = x[:0]
+        return (
+            jnp.stack(
+                [
+                    jnp.all(none > 0).astype(float),
+                    jnp.any(none > 0).astype(float),
+                    jnp.sum(none),
+                    jnp.prod(none),
+                    jnp.max(none, initial=-3.0),
+                    jnp.min(none, initial=3.0),
+                    jnp.max(jnp.arange(0)[None], axis=1, initial=-5)[0].astype(float),
+                ]
+            )
+            + x[0]
+        )
+
+    x = jnp.linspace(0.1, 1.0, 8).reshape(4, 2)
+    expected = jax.jit(jax.vmap(empty))(x)
+    np.testing.assert_array_equal(jax.jit(jax.vmap(straight_line(empty)))(x), expected)
+
+
 def test_eager_calls_run_the_original_function():
     calls = []
 

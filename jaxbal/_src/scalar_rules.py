@@ -79,6 +79,7 @@ _REDUCTIONS = {
     "reduce_or": "or",
     "reduce_and": "and",
 }
+_IDENTITIES = {"add": 0, "mul": 1, "max": -np.inf, "min": np.inf, "or": False, "and": True}
 _CUMULATIVE = {"cumsum": "add", "cumprod": "mul", "cummax": "max", "cummin": "min"}
 #: The binary operations the interpreter itself introduces (reductions, products).
 _LAX = {
@@ -168,7 +169,14 @@ def elementwise(eqn, args):
 
 def _fold(op: str, values, dtype):
     """Left-to-right reduction of a list of scalars with the binary operation ``op`` (the
-    order of XLA's own reductions over short axes, so results agree to the last bit)."""
+    order of XLA's own reductions over short axes, so results agree to the last bit).
+    An empty list gives the operation's identity (``jnp.all`` of nothing is True)."""
+    if not values:
+        identity = _IDENTITIES[op]
+        if np.issubdtype(dtype, np.integer) and op in ("max", "min"):
+            limits = np.iinfo(dtype)
+            identity = limits.min if op == "max" else limits.max
+        return np.asarray(identity, dtype=dtype)[()]
     out = values[0]
     for value in values[1:]:
         out = _scalar_op(op, None, {}, [out, value], dtype)

@@ -5,7 +5,10 @@ MuJoCo computes from the robot's own kinematic tree
 (:meth:`~jaxbal.Robot.mujoco_tree`), relative to the gross scale of the inertial forces
 (so that a balanced robot, whose shaking force is a near-total cancellation, is judged
 on the forces that cancel). States that violate a closed chain's loop closures are
-refused, not compared.
+refused, not compared. With MuJoCo C and a tree that names ``solved`` joints (the
+DUAL-V, the Orthoglide), MuJoCo closes the loops itself from the prescribed joints
+(:mod:`jaxbal._src.mujoco.closure`), and :class:`Confirmation` also reports how far its
+joint positions are from jaxbal's.
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ import numpy as np
 from jaxbal._src.linalg import vee
 from jaxbal._src.momentum import shaking_wrench
 from jaxbal._src.motion import state_valid
-from jaxbal._src.mujoco.inverse import mjx_base_reaction, mjx_model, mujoco_base_reaction
+from jaxbal._src.mujoco.inverse import base_reaction_and_closure, mjx_base_reaction, mjx_model
 from jaxbal._src.mujoco.tree import Tree
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import sample
@@ -41,6 +44,10 @@ class Confirmation(NamedTuple):
         relative: ``max(force_relative, moment_relative)``.
         engine: ``"mujoco"`` (C) or ``"mjx"``.
         independent: False when the prescribed fallback tree was used.
+        closure_difference: with MuJoCo C and a tree with ``solved`` joints, the
+            largest difference between the passive joint positions MuJoCo found by
+            closing the loops itself and jaxbal's [rad or m]; 0 otherwise.
+        closed_by_mujoco: True when MuJoCo C closed the loops itself (``tree.solved``).
     """
 
     force_relative: float
@@ -49,6 +56,8 @@ class Confirmation(NamedTuple):
     moment_error: float
     engine: str
     independent: bool
+    closure_difference: float = 0.0
+    closed_by_mujoco: bool = False
 
     @property
     def relative(self) -> float:
@@ -121,9 +130,11 @@ def confirm(
         "finite); first bad q",
         q,
     )
+    closure, closed = 0.0, False
     if engine == "mujoco":
-        force, moment = mujoco_base_reaction(robot, q, qd, qdd, gravity=gravity, tree=tree)
-        independent = (robot.mujoco_tree() if tree is None else tree).independent
+        tree = robot.mujoco_tree() if tree is None else tree
+        force, moment, closure = base_reaction_and_closure(robot, q, qd, qdd, gravity, tree)
+        independent, closed = tree.independent, bool(tree.solved)
     elif engine == "mjx":
         compiled = mjx_model(robot, gravity, tree)
         force, moment = _mjx_along(compiled, robot, q, qd, qdd)
@@ -141,6 +152,8 @@ def confirm(
         moment_error=moment_error,
         engine=engine,
         independent=independent,
+        closure_difference=closure,
+        closed_by_mujoco=closed,
     )
 
 

@@ -20,7 +20,9 @@ exactly by forward-mode differentiation. The remaining entries of ``qfrc_inverse
 are the joint torques/forces of the tree (the actuator efforts for a serial robot).
 
 For closed chains the ``connect`` constraints act between robot bodies only; when
-the state satisfies them (jaxbal's IK) their Jacobian has no base component, so the
+the state satisfies them (jaxbal's IK for MJX; MuJoCo C's own loop closure for the
+joints a tree lists as ``solved``, see :mod:`jaxbal._src.mujoco.closure`) their
+Jacobian has no base component, so the
 base reaction does not depend on how MuJoCo's soft constraint model splits the
 internal forces; what remains is the constraint residual times the stiffness.
 
@@ -45,6 +47,7 @@ import numpy as np
 with contextlib.redirect_stdout(io.StringIO()):  # MJX prints "Failed to import warp" (harmless)
     from mujoco import mjx
 
+from jaxbal._src.mujoco.closure import close_loops, closure_index, position_gap
 from jaxbal._src.mujoco.mjcf import BASE_MASS, mujoco_inertials, to_mjcf
 from jaxbal._src.mujoco.tree import Tree, tree_state
 from jaxbal._src.robot import Robot
@@ -83,15 +86,40 @@ class MujocoRobot(NamedTuple):
 
     def state(self, q, qd, qdd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Full MuJoCo ``(qpos, qvel, qacc)`` for jaxbal ``(q, q̇, q̈)``, each ``(nq,)``
-        / ``(nv,)``, or ``(T, nq)`` / ``(T, nv)`` for batched ``(T, dof)`` input."""
+        / ``(nv,)``, or ``(T, nq)`` / ``(T, nv)`` for batched ``(T, dof)`` input.
+
+        The joints of ``tree.solved`` are MuJoCo's own loop-closure solution
+        (:func:`~jaxbal._src.mujoco.closure.close_loops`), the others the tree's
+        ``coordinates``."""
+        return self.closed_state(q, qd, qdd)[:3]
+
+    def closed_state(self, q, qd, qdd):
+        """:meth:`state` and the largest difference between MuJoCo's solved hinge/slide
+        positions and the tree's ``coordinates`` (jaxbal's) [rad or m]; 0 without
+        ``tree.solved``."""
         q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
         if q.ndim == 2:
             states = _batched_state(self.tree, q, qd, qdd)
         else:
             states = tree_state(self.tree, q, qd, qdd)
-        return tuple(
+        states = tuple(
             np.concatenate([np.zeros(s.shape[:-1] + (6,)), np.asarray(s)], axis=-1) for s in states
         )
+        if not self.tree.solved:
+            return (*states, 0.0)
+        index = closure_index(self.model, self.tree.solved)
+        data = mujoco.MjData(self.model)
+        batch = [np.atleast_2d(s) for s in states]
+        closed, difference = [], 0.0
+        for x, qpos, qvel, qacc in zip(np.atleast_2d(np.asarray(q)), *batch, strict=True):
+            start = qpos.copy()
+            start[index.qpos] = np.asarray(self.tree.guess(x), dtype=float)[index.qpos - 6]
+            closed.append(close_loops(self.model, data, index, start, qvel, qacc))
+            difference = max(difference, position_gap(index, closed[-1][0], qpos))
+        closed = tuple(np.array(s) for s in zip(*closed, strict=True))
+        if q.ndim == 1:
+            closed = tuple(s[0] for s in closed)
+        return (*closed, difference)
 
     def base_reaction(self, data: mujoco.MjData) -> tuple[np.ndarray, np.ndarray]:
         """``(force, moment)`` on the base from ``data.qfrc_inverse`` (after ``mj_inverse``)."""
@@ -142,6 +170,13 @@ def mujoco_base_reaction(
     Returns:
         ``(force, moment)``, each ``(3,)`` (or ``(T, 3)`` for batched input), numpy.
     """
+    forces, moments, _ = base_reaction_and_closure(robot, q, qd, qdd, gravity, tree)
+    return forces, moments
+
+
+def base_reaction_and_closure(robot: Robot, q, qd, qdd, gravity=None, tree: Tree | None = None):
+    """:func:`mujoco_base_reaction` and the largest difference between the joints that
+    MuJoCo solved (``tree.solved``) and jaxbal's (see :meth:`MujocoRobot.closed_state`)."""
     compiled = mujoco_model(robot, gravity, tree)
     q, qd, qdd = (np.asarray(a, dtype=float) for a in (q, qd, qdd))
     batched = q.ndim == 2
@@ -150,7 +185,7 @@ def mujoco_base_reaction(
         check_shape(name, value, q.shape)
     data = mujoco.MjData(compiled.model)
     forces, moments = [], []
-    states = compiled.state(*(np.atleast_2d(a) for a in (q, qd, qdd)))
+    *states, difference = compiled.closed_state(*(np.atleast_2d(a) for a in (q, qd, qdd)))
     for qpos, qvel, qacc in zip(*states, strict=True):
         data.qpos[:], data.qvel[:], data.qacc[:] = qpos, qvel, qacc
         mujoco.mj_inverse(compiled.model, data)
@@ -158,7 +193,7 @@ def mujoco_base_reaction(
         forces.append(force)
         moments.append(moment)
     forces, moments = np.array(forces), np.array(moments)
-    return (forces, moments) if batched else (forces[0], moments[0])
+    return (forces, moments, difference) if batched else (forces[0], moments[0], difference)
 
 
 # --- MJX --------------------------------------------------------------------------------

@@ -107,6 +107,11 @@ class Tree(NamedTuple):
         independent: False for :func:`prescribed_tree`.
         state: optional ``(q, qd, qdd) -> (qpos, qvel, qacc)`` overriding the default
             (derivatives of ``coordinates``), see :func:`tree_state`.
+        solved: joints that MuJoCo C places itself by closing the ``connects``
+            (:mod:`jaxbal._src.mujoco.closure`); ``coordinates`` then gives only the
+            other (prescribed) joints to MuJoCo C. MJX still takes ``coordinates``.
+        guess: with ``solved``: ``q (dof,) -> qpos`` (numpy) whose solved entries start
+            MuJoCo's Newton; a geometric rule that picks the assembly mode.
     """
 
     bodies: tuple[TreeBody, ...]
@@ -115,6 +120,8 @@ class Tree(NamedTuple):
     actuated: tuple[str, ...] = ()
     independent: bool = True
     state: Callable | None = None
+    solved: tuple[str, ...] = ()
+    guess: Callable | None = None
 
     def joint_names(self) -> tuple[str, ...]:
         return tuple(j.name for b in self.bodies for j in b.joints)

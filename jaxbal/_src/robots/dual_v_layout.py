@@ -10,6 +10,8 @@ References:
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import jax.numpy as jnp
 import numpy as np
 
@@ -23,14 +25,21 @@ N_COORDINATES = 11
 
 
 def dual_v_tree(robot) -> Tree:
-    """MuJoCo tree of a :class:`~jaxbal._src.robots.dual_v.DualV`: four RR arms from the
-    base pivots (link i1 on a z-hinge at A_i carrying the brass and tuning counter-masses
-    and the rotor, link i2 on a z-hinge at B_i), the platform on x, y slides and a
-    z-hinge, and the loops closed by ``connect`` at C_i (arm i's link i2 end = platform
-    end ``s_i·b``). MuJoCo's ``qpos`` per arm is ``(θ_i1, θ_i2 − θ_i1)``."""
-    a, b = float(robot.a), float(robot.b)
+    """MuJoCo tree of a :class:`~jaxbal._src.robots.dual_v.DualV`, built from its
+    geometric parameters: four RR arms from the base pivots (link i1 on a z-hinge at A_i
+    carrying the brass and tuning counter-masses and the rotor, link i2 on a z-hinge at
+    B_i), the platform on x, y slides and a z-hinge, and the loops closed by ``connect``
+    at C_i (arm i's link i2 end = the platform joint C_i). MuJoCo's ``qpos`` per arm is
+    ``(θ_i1, θ_i2 − θ_i1)``.
+
+    The pivots and platform joints are written here from Fig 2c, not from jaxbal's sign
+    tables (:func:`_pivots`). MuJoCo C closes the loops itself: the platform pose is
+    prescribed, the eight arm angles are ``solved`` from the ``connect`` equalities,
+    starting from :class:`ElbowsOutward` (the prototype's two "V"s). MJX takes jaxbal's
+    coordinates."""
+    b = float(robot.b)
     l1, l2 = np.asarray(robot.l1, dtype=float), np.asarray(robot.l2, dtype=float)
-    side, end = np.asarray(BASE_SIDE), np.asarray(PLATFORM_END)
+    pivots, ends = _pivots(robot)
     bodies, connects = [], []
     for i in range(4):
         arm = i + 1
@@ -38,7 +47,7 @@ def dual_v_tree(robot) -> Tree:
             TreeBody(
                 f"link{arm}1",
                 None,
-                pos=vec(side[i] * a, end[i] * b, 0.0),
+                pos=vec(*pivots[i], 0.0),
                 joints=(Joint(f"theta{arm}1", "hinge", Z),),
                 visual_to=(float(l1[i]), 0, 0),
             ),
@@ -53,7 +62,7 @@ def dual_v_tree(robot) -> Tree:
                 visual_to=(float(l2[i]), 0, 0),
             ),
         ]
-        connects.append(Connect(f"link{arm}2", vec(l2[i], 0, 0), "platform", vec(0, end[i] * b, 0)))
+        connects.append(Connect(f"link{arm}2", vec(l2[i], 0, 0), "platform", vec(0, ends[i], 0)))
     slides = (Joint("x5", "slide", (1.0, 0, 0)), Joint("y5", "slide", (0, 1.0, 0)))
     bodies += [
         TreeBody(
@@ -69,7 +78,43 @@ def dual_v_tree(robot) -> Tree:
         coordinates=_mujoco_coordinates,
         connects=tuple(connects),
         actuated=tuple(f"theta{i}1" for i in range(1, 5)),
+        solved=tuple(f"theta{i}{k}" for i in range(1, 5) for k in (1, 2)),
+        guess=ElbowsOutward(pivots, ends, vec(l1)),
     )
+
+
+def _pivots(robot) -> tuple[tuple[tuple[float, float], ...], tuple[float, ...]]:
+    """Base pivots ``A_i`` [m] and the platform joints ``C_i`` along the platform's own
+    y axis [m], read from Fig 2c: the pivots at ``(±a, ±b)`` numbered counter-clockwise
+    from the first quadrant, the platform (length 2b) along y at θ5 = 0 with arms 1, 2
+    joined at its +b end and arms 3, 4 at its −b end."""
+    a, b = float(robot.a), float(robot.b)
+    return ((a, b), (-a, b), (-a, -b), (a, -b)), (b, b, -b, -b)
+
+
+class ElbowsOutward(NamedTuple):
+    """Initial guess of MuJoCo's loop closure: each elbow B_i half a link length off the
+    mid-point of A_i C_i, on the side away from the x axis (the prototype's two "V"s,
+    Fig 2). Only the platform pose ``q[8:11]`` is read; returns the tree's ``qpos``."""
+
+    pivots: tuple[tuple[float, float], ...]
+    ends: tuple[float, ...]
+    l1: tuple[float, ...]
+
+    def __call__(self, q) -> np.ndarray:
+        x5, y5, theta5 = (float(v) for v in np.asarray(q, dtype=float)[8:11])
+        arms = []
+        for pivot, end, length in zip(self.pivots, self.ends, self.l1, strict=True):
+            pivot = np.asarray(pivot)
+            joint = np.array([x5 - end * np.sin(theta5), y5 + end * np.cos(theta5)])
+            along = joint - pivot
+            normal = np.array([-along[1], along[0]]) / max(np.linalg.norm(along), 1e-12)
+            normal *= np.sign(pivot[1]) * np.sign(normal[1] + (normal[1] == 0))
+            elbow = 0.5 * (pivot + joint) + 0.5 * length * normal
+            theta1 = np.arctan2(*(elbow - pivot)[::-1])
+            theta2 = np.arctan2(*(joint - elbow)[::-1])
+            arms += [theta1, theta2 - theta1]
+        return np.array(arms + [x5, y5, theta5])
 
 
 def _mujoco_coordinates(q):

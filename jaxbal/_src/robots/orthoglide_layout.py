@@ -6,6 +6,8 @@ References:
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import jax.numpy as jnp
 import numpy as np
 
@@ -19,9 +21,14 @@ def orthoglide_tree(robot) -> Tree:
     B_i) whose far end is ``connect``-ed to the translating platform P; the
     counter-sliders on their own slides (coordinate ``−ρ_i``).
 
-    The parallelogram's orientation is the minimal rotation taking the home
-    direction ``−e_i`` onto ``(P − B_i)/|P − B_i|`` (as :meth:`body_frames`; the bar
-    has no axial inertia, so the twist about its axis carries no momentum).
+    MuJoCo C closes the loops itself: the platform point P is prescribed; the slider
+    inputs ρ_i and the bars' ball joints are ``solved`` from the ``connect``
+    equalities, starting from :class:`SlidersBeyondPlatform` (configuration indices
+    ``s_i = +1``). The counter-sliders take jaxbal's ``−ρ_i``, which the comparison of
+    MuJoCo's ρ_i with jaxbal's checks. MJX takes jaxbal's coordinates, where the
+    parallelogram's orientation is the minimal rotation taking the home direction
+    ``−e_i`` onto ``(P − B_i)/|P − B_i|`` (as :meth:`body_frames`; the bar has no axial
+    inertia, so the twist about its axis carries no momentum).
     """
     length = float(robot.length)
     eye = np.eye(3)
@@ -50,7 +57,24 @@ def orthoglide_tree(robot) -> Tree:
         coordinates=_mujoco_coordinates,
         connects=tuple(connects),
         actuated=("rho_x", "rho_y", "rho_z"),
+        solved=tuple(f"{kind}_{axis}" for axis in "xyz" for kind in ("rho", "leg")),
+        guess=SlidersBeyondPlatform(length),
     )
+
+
+class SlidersBeyondPlatform(NamedTuple):
+    """Initial guess of MuJoCo's loop closure: slider i a bar length beyond P along
+    axis i (``ρ_i = p_i + L``, configuration index ``s_i = +1`` of eq (1)), each bar
+    along its home direction ``−e_i``. Only ``P = q[3:6]`` is read; returns the tree's
+    ``qpos`` (counter-sliders at ``−ρ_i``)."""
+
+    length: float
+
+    def __call__(self, q) -> np.ndarray:
+        p = np.asarray(q, dtype=float)[3:6]
+        rho = p + self.length
+        legs = [np.array([rho[i], 1.0, 0.0, 0.0, 0.0]) for i in range(3)]
+        return np.concatenate(legs + [p, -rho])
 
 
 def _mujoco_coordinates(q):
