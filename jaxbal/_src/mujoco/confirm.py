@@ -29,6 +29,9 @@ from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import sample
 from jaxbal._src.validation import raise_if_invalid
 
+#: Largest gap [rad or m] between MuJoCo's own loop closure and the given ``q``.
+CLOSURE_GAP = 1e-6
+
 _mjx_along = jax.jit(jax.vmap(mjx_base_reaction, in_axes=(None, None, 0, 0, 0)))
 
 
@@ -118,6 +121,10 @@ def confirm(
 
     Returns:
         A :class:`Confirmation` (max relative and absolute differences).
+
+    Raises:
+        ValueError: states off the loop closures; with MuJoCo C, joints that MuJoCo's
+            own loop closure places more than :data:`CLOSURE_GAP` away from ``q``.
     """
     q, qd, qdd = (jnp.atleast_2d(jnp.asarray(a, dtype=float)) for a in (q, qd, qdd))
     g = jnp.zeros(3) if gravity is None else jnp.asarray(gravity, dtype=float)
@@ -135,6 +142,13 @@ def confirm(
         tree = robot.mujoco_tree() if tree is None else tree
         force, moment, closure = base_reaction_and_closure(robot, q, qd, qdd, gravity, tree)
         independent, closed = tree.independent, bool(tree.solved)
+        if closure > CLOSURE_GAP:
+            raise ValueError(
+                f"confirm: MuJoCo closed the loops of {type(robot).__name__} {closure:.3g} rad "
+                "or m away from the given q: another assembly mode than the MuJoCo model's "
+                "(its tree's guess), e.g. a non-default branch; compare such states with "
+                "engine='mjx'"
+            )
     elif engine == "mjx":
         compiled = mjx_model(robot, gravity, tree)
         force, moment = _mjx_along(compiled, robot, q, qd, qdd)
