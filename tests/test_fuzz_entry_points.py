@@ -447,7 +447,8 @@ PROFILE_NAMED = ("u must be finite", "switch times", "coefficients must be finit
 def _profile_ok(kind, params):
     if kind == "trapezoid":
         u1, u2 = params
-        return bool(np.isfinite(u1) and np.isfinite(u2) and 0 < u1 <= u2 < 0.5)
+        # a subnormal u1 counts as 0 (XLA flushes it, eagerly and compiled alike)
+        return bool(np.isfinite(u1) and np.isfinite(u2) and np.finfo(float).tiny <= u1 <= u2 < 0.5)
     if kind == "polynomial":
         return bool(np.all(np.isfinite(params)))
     return True

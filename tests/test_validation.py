@@ -99,3 +99,53 @@ def test_trapezoid_switch_times_must_be_ordered(switches):
 def test_peak_norm_of_nothing_is_an_error():
     with pytest.raises(ValueError, match=r"t >= 1, got \(0, 3\)"):
         jaxbal.planning.peak_norm(jnp.zeros((0, 3)))
+
+
+def test_tiny_negative_mass_is_judged_alike_everywhere(dual_v_state):
+    """Found by `make fuzz`: m1 = −5e-99 (zero up to rounding) was refused by the
+    eager body check (strict < 0) and accepted under jit (−1e-12 tolerance); one
+    tolerance (validation.ROUNDING) now serves constructors, eager and compiled code:
+    the same wrench both ways (1e-12), as the robot with m1 = 0 (1e-12)."""
+    robot, q, qd, qdd = dual_v_state
+    tiny = eqx.tree_at(lambda r: r.m1, robot, jnp.full(4, -5e-99))
+    zero = eqx.tree_at(lambda r: r.m1, robot, jnp.zeros(4))
+    eager = jnp.concatenate(jaxbal.shaking_wrench(tiny, q, qd, qdd))
+    compiled = jnp.concatenate(eqx.filter_jit(jaxbal.shaking_wrench)(tiny, q, qd, qdd))
+    reference = jnp.concatenate(jaxbal.shaking_wrench(zero, q, qd, qdd))
+    assert jnp.allclose(eager, compiled, rtol=0, atol=1e-12)
+    assert jnp.allclose(eager, reference, rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="non-negative|>= 0"):
+        jaxbal.shaking_wrench(eqx.tree_at(lambda r: r.m1, robot, jnp.full(4, -1e-9)), q, qd, qdd)
+
+
+def test_branch_given_as_a_float_sign():
+    """Found by `make fuzz`: branch=1.0 was refused while (1.0,) was accepted; a real
+    number equal to ±1 now means that sign for every entry, anything else is refused."""
+    arm = jaxbal.robots.planar_2r()
+    pose = jnp.array([0.4, 0.3])
+    for sign in (1, -1):
+        expected = arm.inverse_kinematics(pose, branch=sign)
+        assert jnp.array_equal(arm.inverse_kinematics(pose, branch=float(sign)), expected)
+    for bad in (1.5, 0.0, float("nan")):
+        with pytest.raises(ValueError, match="branch"):
+            arm.inverse_kinematics(pose, branch=bad)
+
+
+def test_trapezoid_with_a_tiny_jerk_phase_is_the_bang_bang_limit():
+    """Found by `make fuzz`: u1 = 1.9e-71 gave s(1/2) = 0.077 (cancellation of two cubes
+    times 1/u1) and eager ≠ compiled. Written without the cancellation, it is the
+    limit u1 → 0: symmetric (s(u) + s(1 − u) = 1 to 1e-15), plateau a on [0, u2] and a
+    linear fall to 0 over h = 1/2 − u2, so s(1/2) = a (u2²/2 + u2 h + h²/3) = 1/2 and
+    s(u2) = a u2²/2 (closed form, 1e-12); eager = compiled."""
+    u2 = 0.25
+    profile = jaxbal.profiles.TrapezoidalAcceleration(1.871730137410757e-71, u2)
+    u = jnp.linspace(0.0, 1.0, 41)
+    s = jax.vmap(profile)(u)
+    assert float(jnp.max(jnp.abs(s + jax.vmap(profile)(1.0 - u) - 1.0))) < 1e-15
+    peak = float(profile.peak_acceleration)
+    h = 0.5 - u2
+    expected_peak = 1.0 / (2.0 * (u2**2 / 2.0 + u2 * h + h**2 / 3.0))
+    assert abs(peak / expected_peak - 1.0) < 1e-12
+    assert abs(float(profile(u2)) - peak * u2**2 / 2.0) < 1e-15
+    compiled = eqx.filter_jit(lambda p, x: jax.vmap(p)(x))(profile, u)
+    assert jnp.allclose(compiled, s, rtol=0, atol=1e-15)

@@ -27,11 +27,13 @@ from jaxbal._src.planar import PlanarRobot, planar_inertial_wrench
 from jaxbal._src.robot import Robot
 from jaxbal._src.straight_line import straight_line
 from jaxbal._src.types import Array, Coordinates, Points, Rotations, Scalar, Vec3
-from jaxbal._src.validation import check_shape, guard, is_traced, runtime_checks_enabled
-
-#: Tolerance of the sign checks [kg, kg·m²]: derived masses and inertias that are zero
-#: up to rounding (e.g. ``I + m p² − m p²``) are accepted.
-ROUNDING = 1e-12
+from jaxbal._src.validation import (
+    ROUNDING,
+    check_shape,
+    guard,
+    is_traced,
+    runtime_checks_enabled,
+)
 
 
 def checked_state(robot: Robot, q, qd, qdd):

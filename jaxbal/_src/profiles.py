@@ -33,6 +33,21 @@ def _ramp_power(x, power: int):
     return jnp.where(positive, safe**power / factorial, 0.0)
 
 
+def _cube_difference(u, start, end):
+    """``(r(u − start)³ − r(u − end)³) / (6 (end − start))`` with ``r = max(·, 0)``, for
+    ``start ≤ end``: the position of a unit jerk switched on at ``start`` and off at
+    ``end``, scaled by ``1/(end − start)``. Written without the cancellation of the
+    difference (``a² + ab + b²`` once both ramps are on), so a phase of width 1e-71
+    gives the bang-bang limit, not round-off times 1e71; u-derivatives exact and
+    right-continuous at both ends."""
+    a, b = u - start, u - end
+    a_on = jnp.where(a >= 0, a, 0.0)
+    b_on = jnp.where(b >= 0, b, 0.0)
+    ramping = a_on**3 / (6.0 * jnp.maximum(end - start, 1e-300))
+    both_on = (a_on**2 + a_on * b_on + b_on**2) / 6.0
+    return jnp.where(b >= 0, both_on, ramping)
+
+
 def _checked_time(profile, u, value):
     """``value = s(u)``, guarded by a finite ``u`` and a finite ``s(u)``: a NaN time gave a
     silent NaN, and a time far outside [0, 1] (u = 1e300) overflowed to inf. Eagerly a
@@ -81,7 +96,8 @@ class TrapezoidalAcceleration(Profile):
     Bang-bang is the limit ``u1 → 0, u2 → 1/2``.
 
     Attributes:
-        u1: first switch time as a fraction of the duration, ``0 < u1 ≤ u2``.
+        u1: first switch time as a fraction of the duration, ``0 < u1 ≤ u2`` (a
+            subnormal ``u1 < 2.2e-308`` counts as 0: XLA flushes it).
         u2: second switch time as a fraction of the duration, ``u2 < 1/2``.
 
     The jerk is piecewise constant, so actuator torque *rates* stay bounded, which is
@@ -96,11 +112,15 @@ class TrapezoidalAcceleration(Profile):
         self.u2 = jnp.asarray(u2, dtype=float)
 
     def _shape(self, u):
+        """Position for a unit plateau acceleration: jerk ``+1/u1`` on ``[0, u1]``,
+        ``−2/(1 − 2u2)`` on ``[u2, 1 − u2]``, ``+1/u1`` from ``1 − u1`` on."""
         u1, u2 = self.u1, self.u2
-        half_gap = jnp.maximum(1.0 - 2.0 * u2, 1e-12)
-        knots = jnp.stack([jnp.zeros_like(u1), u1, u2, 1.0 - u2, 1.0 - u1])
-        slope_jumps = jnp.stack([1.0 / u1, -1.0 / u1, -2.0 / half_gap, 2.0 / half_gap, 1.0 / u1])
-        return jnp.sum(slope_jumps * _ramp_power(u - knots, 3))
+        last = _ramp_power(u - (1.0 - u1), 3) / jnp.maximum(u1, 1e-300)
+        return (
+            _cube_difference(u, jnp.zeros_like(u1), u1)
+            - 2.0 * _cube_difference(u, u2, 1.0 - u2)
+            + last
+        )
 
     def __call__(self, u):
         u = jnp.asarray(u, dtype=float)

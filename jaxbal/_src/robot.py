@@ -180,8 +180,10 @@ class Robot(eqx.Module):
         """
         if branch is None:
             return self.default_branch
-        if isinstance(branch, int | np.integer) and not isinstance(branch, bool):
-            branch = (int(branch),) * self.branch_size
+        if isinstance(branch, int | float | np.integer | np.floating) and not isinstance(
+            branch, bool
+        ):  # one sign for every entry; 1.0 is +1 as inside a tuple, 1.5 is refused below
+            branch = (branch,) * self.branch_size
         try:
             signs = tuple(int(s) for s in branch)
             exact = all(float(s) == int(s) for s in branch) and not isinstance(branch, str)

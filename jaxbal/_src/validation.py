@@ -21,8 +21,16 @@ def is_traced(*values) -> bool:
     return any(isinstance(leaf, jax.core.Tracer) for leaf in leaves)
 
 
+#: Tolerance of every sign check [kg, m, kg·m²]: values that are zero up to rounding (a
+#: derived ``I + m p² − m p²``, a subnormal ``−1e-309`` that compiled code flushes to
+#: zero) are accepted, alike in constructors, eagerly and under ``jit``.
+ROUNDING = 1e-12
+
+
 def check_nonnegative(name: str, value) -> None:
-    """Raise ``ValueError`` if a concrete ``value`` has a negative or non-finite entry.
+    """Raise ``ValueError`` if a concrete ``value`` has a non-finite entry or one below
+    ``−ROUNDING`` (the tolerance of the physics' own checks, so that a constructor and
+    the physics judge a tiny negative alike).
 
     Traced values are left alone (they are checked where they are used, via masks).
     """
@@ -31,7 +39,7 @@ def check_nonnegative(name: str, value) -> None:
     arr = np.asarray(value, dtype=float)
     if not np.all(np.isfinite(arr)):
         raise ValueError(f"{name} must be finite, got {arr!r}")
-    if np.any(arr < 0):
+    if np.any(arr < -ROUNDING):
         raise ValueError(f"{name} must be non-negative, got {arr!r}")
 
 
