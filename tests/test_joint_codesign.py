@@ -116,8 +116,12 @@ def test_nondominated_known_set():
 
 @pytest.mark.slow
 def test_front_end_points_and_dominance(problem):
+    """The w = 0 end point equals an independent single-objective solve (1e-6). The RMS
+    force has a flat valley along each counter-mass moment m·r (41 kg at 0.263 m and 44
+    kg at 0.245 m give the same value), so the solves need 600 L-BFGS steps for their
+    values to settle: with 150 they stopped 0.01-4 % apart depending on rounding."""
     arm, move = problem
-    options = {"payloads": PAYLOADS, "upper": DESIGN_UPPER, "max_steps": 150, "gtol": 1e-9}
+    options = {"payloads": PAYLOADS, "upper": DESIGN_UPPER, "max_steps": 600, "gtol": 1e-9}
     options.update(trajectory_lower=LOWER, trajectory_upper=UPPER)
     metrics = ("rms_force", "added_mass")
     front = pareto_front(arm, move, THETA, metrics, [0.0, 0.3, 1.0], **options)
@@ -125,7 +129,7 @@ def test_front_end_points_and_dominance(problem):
     assert bool(front.feasible.all())
     single = joint_codesign(arm, move, THETA, "rms_force", **options)
     # reference: an independent single-objective solve (end point w = 0)
-    np.testing.assert_allclose(front.values[0, 0], single.metrics["rms_force"][1], rtol=1e-4)
+    np.testing.assert_allclose(front.values[0, 0], single.metrics["rms_force"][1], rtol=1e-6)
     # w = 1: the added mass alone is minimised -> zero counter-mass (reference: 0, within
     # the 0.1 g that the r² bound parametrisation approaches it by, START_OFFSET)
     assert float(front.values[-1, 1]) < 1e-4
