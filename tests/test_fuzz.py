@@ -124,6 +124,9 @@ def test_straight_line_and_trapezoid(duration, switches):
         assert not (ok_switch and ok_duration)
         return
     assert np.all(np.isfinite(np.asarray(x)))
+    if 0.25 * duration < TINY:  # a subnormal time counts as t = 0 (XLA flushes it)
+        assert float(x[0]) == 0.0
+        return
     # s(1/4) of a symmetric profile lies strictly between 0 and 1/2
     assert 0.0 < float(x[0]) < 0.5
 
