@@ -359,11 +359,14 @@ def test_five_bar_ik_closure_and_unreachable(five_bar):
 @pytest.mark.slow
 def test_five_bar_matches_mujoco(five_bar):
     """``confirm`` on the rebuilt tree (counter-masses welded, connect closing the
-    loop) agrees with jaxbal to 1e-9; so does MuJoCo on the user's own file for the
+    loop, MuJoCo C placing the passive joints and computing their velocities and
+    accelerations itself) agrees with jaxbal to 1e-9; so does MuJoCo on the user's own file for the
     robot without counter-masses (payload at the file's value)."""
     robot, motion = five_bar
     result = confirm(robot, *motion)
     assert result.independent and result.relative < 1e-9
+    # MuJoCo C re-closed the loop itself: its passive joints equal jaxbal's (1e-12)
+    assert result.closed_by_mujoco and result.closure_difference < 1e-12, result
     zeros = (jnp.zeros(2), jnp.zeros((2, 3, 3)))
     bare = eqx.tree_at(lambda r: (r.counter_mass, r.counter_inertia), robot, zeros)
     ours, _ = _wrenches(bare, *motion)

@@ -101,9 +101,21 @@ def mjcf_tree(robot) -> Tree:
     actuated = tuple(
         robot.joint_names[robot.joint_qpos.index(a)] for a in robot.actuated_coordinates
     )
+    # MuJoCo C re-closes the loops itself (jaxbal/_src/mujoco/closure.py): the independent
+    # joints are prescribed, the others start from jaxbal's solution (the user's assembly
+    # mode) and their velocities and accelerations are MuJoCo's own.
+    independent = set(robot.independent_coordinates)
+    solved = tuple(
+        name
+        for name, start in zip(robot.joint_names, robot.joint_qpos, strict=True)
+        if connects and start not in independent
+    )
+    coordinates = QposOffsets(vec(offsets))
     return Tree(
         bodies=tuple(bodies),
-        coordinates=QposOffsets(vec(offsets)),
+        coordinates=coordinates,
         connects=tuple(connects),
         actuated=actuated,
+        solved=solved,
+        guess=coordinates,
     )
