@@ -124,10 +124,10 @@ def _bias(model, data, index: ClosureIndex) -> np.ndarray:
     return np.concatenate(rows)
 
 
-def _solve(matrix, rhs, what: str, scale: float) -> np.ndarray:
+def _solve(matrix, rhs, what: str) -> np.ndarray:
     solution = np.linalg.lstsq(matrix, rhs, rcond=None)[0]
     miss = np.max(np.abs(matrix @ solution - rhs), initial=0.0)
-    if miss > 1e-8 * max(np.max(np.abs(rhs), initial=0.0), scale):
+    if miss > 1e-8 * np.max(np.abs(rhs), initial=0.0):
         raise ValueError(
             f"MuJoCo cannot close the loops ({what}): the solved joints cannot follow the "
             f"prescribed ones (a singular configuration?); residual {miss:.3g}"
@@ -167,10 +167,10 @@ def close_loops(model, data, index: ClosureIndex, qpos, qvel, qacc):
             f"{MAX_ITERATIONS} Newton steps (an unreachable pose?)"
         )
     qvel[solved], qacc[solved] = 0.0, 0.0
-    qvel[solved] = _solve(jacobian[:, solved], -jacobian @ qvel, "velocities", 0.0)
+    qvel[solved] = _solve(jacobian[:, solved], -jacobian @ qvel, "velocities")
     data.qvel[:] = qvel
     bias = _bias(model, data, index)
-    qacc[solved] = _solve(jacobian[:, solved], -(jacobian @ qacc + bias), "accelerations", 0.0)
+    qacc[solved] = _solve(jacobian[:, solved], -(jacobian @ qacc + bias), "accelerations")
     return qpos, qvel, qacc
 
 
