@@ -36,6 +36,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -134,9 +135,51 @@ def _rms(vectors: Float[Array, "t k"]) -> Scalar:
     return scale * jnp.where(positive, jnp.sqrt(jnp.where(positive, mean_square, 1.0)), 0.0)
 
 
+def _frozen(tree):
+    """``tree`` with every array leaf behind ``stop_gradient`` (other leaves unchanged)."""
+    return jax.tree.map(lambda x: jax.lax.stop_gradient(x) if eqx.is_array(x) else x, tree)
+
+
+def _peak(evaluate, pick, robot: Robot, motion: Motion, what: str) -> Scalar:
+    """``max_t ‖pick(evaluate(robot, q_t, q̇_t, q̈_t))‖``, differentiated at its peak sample.
+
+    The value is :func:`peak_norm` of every sample, exactly as before. Under ``jit``,
+    ``grad`` and ``jvp``, that evaluation sees the robot and motion behind
+    ``stop_gradient`` (no tangents, no residuals stored for the reverse pass), and the
+    derivative comes from one re-evaluation at the peak sample ``t*``:
+    ``peak + (n(t*) − stop_gradient(n(t*)))``, whose value is ``peak`` and whose
+    derivatives of every order are those of ``‖v(t*)‖``. That is the derivative of the
+    maximum wherever the peak sample is unique (the maximum equals ``‖v(t*)‖`` in a
+    neighbourhood), so ``grad`` costs about one value instead of the ``~3×`` of
+    reverse mode through all samples. At an exact tie between samples it is the
+    derivative at the first of them (a subgradient; ``jnp.max`` would average them).
+    """
+    motion = as_motion(motion)
+    if not is_traced(robot, motion):
+        return peak_norm(pick(_batched(evaluate, robot, motion, what)))
+    still_robot, still_motion = _frozen(robot), _frozen(motion)
+    vectors = pick(jax.vmap(lambda *state: evaluate(still_robot, *state))(*still_motion))
+    peak = peak_norm(vectors)
+    index = jnp.argmax(jnp.sum(jnp.square(vectors / _unit_scale(vectors)), axis=-1))
+    local = peak_norm(pick(evaluate(robot, *(part[index] for part in motion)))[None])
+    return peak + (local - jax.lax.stop_gradient(local))
+
+
+def _force(wrench):
+    return wrench[0]
+
+
+def _moment(wrench):
+    return wrench[1]
+
+
+def _same(vectors):
+    return vectors
+
+
 def peak_force(robot: Robot, motion: Motion) -> Scalar:
-    """Peak shaking force ``max_t ‖f_sh(t)‖`` [N]."""
-    return peak_norm(_wrench(robot, motion)[0])
+    """Peak shaking force ``max_t ‖f_sh(t)‖`` [N] (derivatives: see :func:`_peak`)."""
+    return _peak(shaking_wrench, _force, robot, motion, "shaking wrench")
 
 
 def rms_force(robot: Robot, motion: Motion) -> Scalar:
@@ -145,8 +188,9 @@ def rms_force(robot: Robot, motion: Motion) -> Scalar:
 
 
 def peak_moment(robot: Robot, motion: Motion) -> Scalar:
-    """Peak shaking moment about the base origin ``max_t ‖m_sh(t)‖`` [N·m]."""
-    return peak_norm(_wrench(robot, motion)[1])
+    """Peak shaking moment about the base origin ``max_t ‖m_sh(t)‖`` [N·m] (derivatives:
+    see :func:`_peak`)."""
+    return _peak(shaking_wrench, _moment, robot, motion, "shaking wrench")
 
 
 def rms_moment(robot: Robot, motion: Motion) -> Scalar:
@@ -155,8 +199,9 @@ def rms_moment(robot: Robot, motion: Motion) -> Scalar:
 
 
 def peak_torque(robot: Robot, motion: Motion) -> Scalar:
-    """Peak norm of the actuator torque/force vector ``max_t ‖τ(t)‖`` [N·m, N]."""
-    return peak_norm(_torques(robot, motion))
+    """Peak norm of the actuator torque/force vector ``max_t ‖τ(t)‖`` [N·m, N]
+    (derivatives: see :func:`_peak`)."""
+    return _peak(actuator_torques, _same, robot, motion, "actuator torques")
 
 
 def rms_torque(robot: Robot, motion: Motion) -> Scalar:
