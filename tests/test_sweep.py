@@ -150,11 +150,16 @@ def test_array_valued_and_renamed_grids(arm):
     assert ds["value"].values[2, 1] == pytest.approx(float(expected), rel=1e-13)
 
 
-def test_memory_budget_cuts_blocks_and_the_values_do_not_change(arm):
+@pytest.mark.parametrize(("linear", "budget"), [(False, 64 * 2**10), ("auto", 8 * 2**10)])
+def test_memory_budget_cuts_blocks_and_the_values_do_not_change(arm, linear, budget):
+    """Direct and affine evaluation (whose points need far less memory) alike."""
     robot, motion = arm
     axes = {"counter_mass": np.linspace(0, 3, 16), "payload": np.linspace(0, 1, 8)}
-    whole = jaxbal.sweep("rms_force", robot, motion, axes, progress=False)
-    cut = jaxbal.sweep("rms_force", robot, motion, axes, memory_budget=64 * 2**10, progress=False)
+    whole = jaxbal.sweep("rms_force", robot, motion, axes, progress=False, linear=linear)
+    cut = jaxbal.sweep(
+        "rms_force", robot, motion, axes, memory_budget=budget, progress=False, linear=linear
+    )
+    assert (cut.attrs.get("evaluation") == "affine") == (linear == "auto")
     blocks = int(cut.attrs["blocks_done"].split("/")[1])
     assert blocks > 1 and whole.attrs["blocks_done"] == "1/1"
     # small blocks run XLA's small-batch loops: equal to rounding (see MIN_DEVICE_BATCH)
@@ -226,23 +231,43 @@ def test_two_host_devices_equal_plain_vmap_bit_for_bit():
                 return metric(r, motion)
             C, P = np.meshgrid(cm, pl, indexing="ij")
             plain = np.asarray(jax.jit(jax.vmap(point))(C.ravel(), P.ravel())).reshape(C.shape)
+            from jaxbal._src.sweep import prepare
+            axes = {"counter_mass": cm, "payload": pl}
+            # the affine fast path's own plain vmap (one device, no shard_map)
+            _, program, dynamic, _, how = prepare("peak_force", robot, motion, axes, mesh=False)
+            flat = {"counter_mass": C.ravel(), "payload": P.ravel()}
+            affine = np.asarray(jax.jit(program.batch)(dynamic, flat)["value"]).reshape(C.shape)
+            out["how"] = how
             for chunk in (128, 64, 7):
-                ds = jaxbal.sweep("peak_force", robot, motion, {"counter_mass": cm, "payload": pl},
-                                  chunk_size=chunk, progress=False)
+                ds = jaxbal.sweep("peak_force", robot, motion, axes, chunk_size=chunk,
+                                  progress=False, linear=False)
+                fast = jaxbal.sweep("peak_force", robot, motion, axes, chunk_size=chunk,
+                                    progress=False)
                 out[str(chunk)] = [bool(np.array_equal(ds["value"].values, plain)),
                                    ds.attrs["blocks_done"],
-                                   float(np.max(np.abs(ds["value"].values / plain - 1)))]
+                                   float(np.max(np.abs(ds["value"].values / plain - 1))),
+                                   bool(np.array_equal(fast["value"].values, affine)),
+                                   float(np.max(np.abs(fast["value"].values / affine - 1))),
+                                   float(np.max(np.abs(fast["value"].values / plain - 1))),
+                                   fast.attrs.get("evaluation")]
             print(json.dumps(out))
             """,
             devices=2,
         )
     )
-    assert result["devices"] == 2
-    # one block, or device batches of 32 points x 64 samples (>= 2,048 elements, see
-    # jaxbal._src.sweep.MIN_DEVICE_BATCH): bit for bit
+    assert result["devices"] == 2 and result["how"] == "affine"
+    # direct (linear=False): one block, or device batches of 32 points x 64 samples
+    # (>= 2,048 elements, see jaxbal._src.sweep.MIN_DEVICE_BATCH): bit for bit
     assert result["128"][:2] == [True, "1/1"] and result["64"][:2] == [True, "2/2"]
     # blocks of 7 points padded to 8, 4 per device: XLA's small-batch loops, last bit only
     assert result["7"][1] == "32/32" and result["7"][2] < 2e-15
+    # the affine fast path (default): one block bit for bit its own plain vmap; smaller
+    # device batches (< MIN_DEVICE_BATCH elements) to the last bit; the direct metric to
+    # rounding
+    assert result["128"][3] is True
+    for chunk in ("128", "64", "7"):
+        assert result[chunk][4] <= 4.5e-16 and result[chunk][6] == "affine", chunk
+        assert result[chunk][5] < 1e-13, chunk
 
 
 KILLED = """

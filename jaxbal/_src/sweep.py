@@ -19,10 +19,12 @@ import numpy as np
 
 from jaxbal._src.sweep_axes import Axis, Layout, grid
 from jaxbal._src.sweep_program import (
+    bound_cache,
     build,
     chunk_memory,
     device_mesh,
     output_shapes,
+    shape_key,
 )
 from jaxbal._src.sweep_run import run_backend
 from jaxbal._src.sweep_store import SweepStore, fingerprint, open_dataset, remove_partial_files
@@ -192,26 +194,79 @@ def _lu_batch(jaxpr) -> int:
     return total
 
 
+#: LU factorisations per point by :func:`~jaxbal._src.sweep_program.shape_key`.
+_LU: dict = {}
+
+
 def _chunk_points(program, dynamic, params, budget, total, devices) -> int:
     per_point, fixed = chunk_memory(program, dynamic, params)
     per_device = max((budget - fixed) // per_point, 1)
     import jax
 
-    one = {k: v[0] for k, v in params.items()}
-    lu = _lu_batch(jax.make_jaxpr(program.point)(dynamic, one).jaxpr)
+    key = shape_key(program, dynamic, params)
+    if key not in _LU:
+        one = {k: v[0] for k, v in params.items()}
+        _LU[key] = _lu_batch(jax.make_jaxpr(program.point)(dynamic, one).jaxpr)
+        bound_cache(_LU)
+    lu = _LU[key]
     if lu:
         per_device = min(per_device, max(MAX_LU_BATCH // lu, 1))
     return int(min(per_device * devices, total, MAX_CHUNK))
 
 
-def prepare(metric, robot, motion, axes, *, trajectory=None, devices=None, mesh=True):
-    """``(axes, program, dynamic, outputs)`` of a sweep (see :func:`sweep`)."""
+def _affine(metric, robot, motion, axes, plan, trajectory, linear):
+    """``(robot, function, plan, evaluation)`` of the affine fast path
+    (:mod:`jaxbal._src.sweep_affine`), or ``None`` to evaluate the metric directly."""
+    from jaxbal._src.metrics import as_motion
+    from jaxbal._src.sweep_affine import TOLERANCE, WRENCH_METRICS, AffineMetric, affine_model
+
+    if linear not in (True, False, "auto"):
+        raise ValueError(f'linear must be True, False or "auto", got {linear!r}')
+    eligible = (
+        isinstance(metric, str)
+        and metric in WRENCH_METRICS
+        and not callable(motion)
+        and not trajectory
+        and all(how != "trajectory" for _, how, _ in plan)
+    )
+    if not eligible:
+        if linear is True:
+            raise ValueError(
+                f"linear=True needs one of the metrics {sorted(WRENCH_METRICS)} by name, a "
+                "fixed motion (not a factory) and no trajectory variables; got metric "
+                f"{metric!r}"
+            )
+        return None
+    if linear is False:
+        return None
+    model, deviation = affine_model(metric, robot, as_motion(motion), axes, plan)
+    if deviation <= TOLERANCE:
+        model_plan = tuple((name, "design", None) for name, _, _ in plan)
+        return model, AffineMetric(metric), model_plan, "affine"
+    if linear is True:
+        raise ValueError(
+            f"the shaking wrench is not affine in the swept parameters {[n for n, _, _ in plan]}"
+            f": the affine model deviates by {deviation:.3g} of the wrench's scale (tolerance "
+            f"{TOLERANCE:g}); a length or distance enters nonlinearly: use linear=False"
+        )
+    return None
+
+
+def prepare(
+    metric, robot, motion, axes, *, trajectory=None, devices=None, mesh=True, linear="auto"
+):
+    """``(axes, program, dynamic, outputs, evaluation)`` of a sweep (see :func:`sweep`);
+    ``evaluation`` says whether the affine fast path is used."""
     from jaxbal._src.metrics import resolve_metric
 
     axes = _axes(axes)
     function = resolve_metric(metric) if isinstance(metric, str) else metric
     plan = plan_parameters(axes, robot, motion)
     check_bounds(axes, robot, plan)
+    evaluation = "direct"
+    fast = _affine(metric, robot, motion, axes, plan, trajectory, linear)
+    if fast is not None:
+        robot, function, plan, evaluation = fast
     theta = {k: np.asarray(v, dtype=float) for k, v in (trajectory or {}).items()}
     device_list = None if devices is None else list(devices)
     program, dynamic = build(
@@ -219,10 +274,10 @@ def prepare(metric, robot, motion, axes, *, trajectory=None, devices=None, mesh=
     )
     first = {n: v[:1] for a in axes.values() for n, v in a.values.items()}
     outputs = output_shapes(program, dynamic, first)
-    return axes, program, dynamic, outputs
+    return axes, program, dynamic, outputs, evaluation
 
 
-def _metadata(metric, robot, axes, outputs, units, output_dims, attrs) -> dict:
+def _metadata(metric, robot, axes, outputs, units, output_dims, attrs, evaluation="direct"):
     if isinstance(units, str):
         if len(outputs) != 1:
             raise ValueError(f"units as one string needs one output, got {sorted(outputs)}")
@@ -234,6 +289,8 @@ def _metadata(metric, robot, axes, outputs, units, output_dims, attrs) -> dict:
     if isinstance(metric, str) and not units:
         units = {n: METRIC_UNITS.get(metric, "") for n in outputs}
     base = {"metric": name, "robot": type(robot).__name__}
+    if evaluation != "direct":  # part of the fingerprint: a resume never mixes the two
+        base["evaluation"] = "affine"
     extra = {"block_outputs": {k: str(v.dtype) for k, v in outputs.items()}, **base}
     return {
         "units": dict(units or {}),
@@ -262,6 +319,7 @@ def sweep(
     attrs: Mapping | None = None,
     allow_nonfinite: bool = False,
     fold: bool = True,
+    linear: bool | str = "auto",
 ):
     """Evaluate ``metric(robot, motion)`` on the Cartesian product of ``axes``.
 
@@ -275,6 +333,16 @@ def sweep(
     ``fold=False`` compiles once for every sweep of the same structure (many small
     sweeps).
 
+    ``linear``: a named wrench metric (``peak_force``, ``rms_force``, ``peak_moment``,
+    ``rms_moment``) along a fixed motion is affine in masses and inertias (counter-masses,
+    payloads): with ``"auto"`` (default) the sweep verifies that at 8 of its points and
+    then evaluates each point from the wrench and its derivatives computed once
+    (:mod:`jaxbal._src.sweep_affine`; equal to the direct metric to rounding, far faster);
+    a swept length or distance fails the check and is evaluated directly. ``True``
+    raises instead of falling back; ``False`` always evaluates directly (bit for bit
+    the plain ``vmap`` of the metric). The dataset's ``evaluation`` attribute says
+    ``"affine"`` when the fast path ran.
+
     Raises:
         ValueError: an unknown parameter, values that are not finite or below a design
             variable's lower bound (naming the axis), a runtime check failing in a block
@@ -282,10 +350,10 @@ def sweep(
             ``allow_nonfinite=True`` stores it instead). The blocks finished before
             stay in the store.
     """
-    axes, program, dynamic, outputs = prepare(
-        metric, robot, motion, axes, trajectory=trajectory, devices=devices
+    axes, program, dynamic, outputs, evaluation = prepare(
+        metric, robot, motion, axes, trajectory=trajectory, devices=devices, linear=linear
     )
-    meta = _metadata(metric, robot, axes, outputs, units, output_dims, attrs)
+    meta = _metadata(metric, robot, axes, outputs, units, output_dims, attrs, evaluation)
     count = program.mesh.size
     sizes = tuple(a.size for a in axes.values())
     path = None if store is None else Path(store)

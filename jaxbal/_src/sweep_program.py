@@ -25,11 +25,14 @@ from jax.sharding import Mesh, NamedSharding, PartitionSpec
 __all__ = [
     "AXIS",
     "Program",
+    "apply_parameters",
     "build",
     "chunk_memory",
     "device_mesh",
     "output_shapes",
     "pytrees",
+    "bound_cache",
+    "shape_key",
     "evaluate",
     "run_chunk",
 ]
@@ -82,16 +85,7 @@ class Program:
     def point(self, dynamic, params: dict):
         """The metric at one point as a dict of arrays (``params``: name ↦ value)."""
         robot, motion, theta = _join(dynamic, self.static)
-        theta = dict(theta)
-        for name, how, setter in self.plan:
-            value = params[name]
-            if how == "set":
-                robot = setter(robot, value)
-            elif how == "design":
-                leaf = robot.design()[name]
-                robot = robot.with_design({name: jnp.broadcast_to(value, jnp.shape(leaf))})
-            else:
-                theta[name] = value
+        robot, theta = apply_parameters(robot, self.plan, params, theta)
         if self.factory:
             motion = motion(robot, theta)
         return as_outputs(self.metric(robot, motion))
@@ -99,6 +93,23 @@ class Program:
     def batch(self, dynamic, params: dict):
         """:meth:`point` mapped over the leading axis of every parameter."""
         return jax.vmap(self.point, in_axes=(None, 0))(dynamic, params)
+
+
+def apply_parameters(robot, plan: tuple, params: dict, theta=None):
+    """``(robot, θ)`` with the point's ``params`` applied as ``plan`` says: a design
+    variable by ``robot.with_design`` (a value broadcast to the variable's shape), a
+    setter by ``setter(robot, value)``, a trajectory variable into ``θ``."""
+    theta = dict(theta or {})
+    for name, how, setter in plan:
+        value = params[name]
+        if how == "set":
+            robot = setter(robot, value)
+        elif how == "design":
+            leaf = robot.design()[name]
+            robot = robot.with_design({name: jnp.broadcast_to(value, jnp.shape(leaf))})
+        else:
+            theta[name] = value
+    return robot, theta
 
 
 def as_outputs(value) -> dict:
@@ -202,10 +213,36 @@ def put(program: Program, params: dict) -> dict:
     return {k: jax.device_put(np.asarray(v), sharding) for k, v in params.items()}
 
 
+def shape_key(program: Program, dynamic, params: dict) -> tuple:
+    """What a trace of ``program.point`` depends on: the program and the shapes and
+    dtypes of its arguments (not their values)."""
+
+    def spec(x):
+        return (np.shape(x), str(np.asarray(x).dtype) if not hasattr(x, "dtype") else str(x.dtype))
+
+    points = tuple((k, spec(v)) for k, v in sorted(params.items()))
+    return program, tuple(spec(x) for x in dynamic), points
+
+
+#: ``output_shapes`` by :func:`shape_key` (a repeated sweep traces nothing twice).
+_SHAPES: dict = {}
+
+
 def output_shapes(program: Program, dynamic, params: dict) -> dict:
-    """``{output: ShapeDtypeStruct}`` of one point (nothing is computed)."""
-    one = {k: v[0] for k, v in params.items()}
-    return jax.eval_shape(program.point, dynamic, one)
+    """``{output: ShapeDtypeStruct}`` of one point (nothing is computed; cached by
+    :func:`shape_key`)."""
+    key = shape_key(program, dynamic, params)
+    if key not in _SHAPES:
+        one = {k: v[0] for k, v in params.items()}
+        _SHAPES[key] = jax.eval_shape(program.point, dynamic, one)
+        bound_cache(_SHAPES)
+    return _SHAPES[key]
+
+
+def bound_cache(cache: dict, size: int = 32) -> None:
+    """Drop the oldest entries of ``cache`` beyond ``size`` (they hold programs)."""
+    while len(cache) > size:
+        cache.pop(next(iter(cache)))
 
 
 #: ``chunk_memory`` results by program and argument shapes (values do not matter).
