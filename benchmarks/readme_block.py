@@ -32,20 +32,36 @@ def _yes(flag: bool) -> str:
     return "met" if flag else "not met"
 
 
+def _memory(m: dict, budget: float) -> str:
+    mib = 2**20
+    return (
+        f"{m['total_bytes'] / mib:.2f} MiB for {m['points_per_device_per_call']:,} points "
+        f"(arguments {m['argument_bytes'] / mib:.2f}, of which robot and motion "
+        f"{m['argument_bytes_shared_robot_and_motion'] / mib:.2f}; temporaries "
+        f"{m['temp_bytes'] / mib:.2f}; outputs {m['output_bytes'] / mib:.2f}; budget "
+        f"{budget:.0f})"
+    )
+
+
 def sweep_lines(s: dict) -> list[str]:
     """The README lines of the DUAL-V design sweep against Python loops."""
     mib, budget = 2**20, s["memory_budget_bytes"] / 2**20
-    default = s["default_budget"]
+    default, direct = s["default_budget"], s["direct"]
     lines = [
         "",
         f"| DUAL-V sweep ({s['metric']}): {s['designs']} counter-mass designs × "
         f"{s['payloads']} payloads × {s['samples']:,} samples | states/s | first call [s] "
-        f"| its time / sweep's ({budget:.0f} MiB) |",
+        "| its time / sweep's |",
         "|---|---:|---:|---:|",
-        f"| `jaxbal.sweep`, {budget:.0f} MiB budget: {s['blocks']} blocks on "
-        f"{s['devices']} devices | {s['sweep_states_per_second']:.3g} | "
-        f"{s['sweep_first_call_seconds']:.1f} | 1 |",
-        f"| `jaxbal.sweep`, default {default['memory_budget_bytes'] / mib:.0f} MiB budget: "
+        f"| `jaxbal.sweep` (default: {s['evaluation']} evaluation), {budget:.0f} MiB budget: "
+        f"{s['blocks']} block{'s' * (s['blocks'] != 1)} on {s['devices']} devices | "
+        f"{s['sweep_states_per_second']:.3g} | {s['sweep_first_call_seconds']:.1f} | 1 |",
+        f"| `jaxbal.sweep(..., linear=False)`, {budget:.0f} MiB budget: {direct['blocks']} "
+        f"blocks | {direct['sweep_states_per_second']:.3g} | "
+        f"{direct['sweep_first_call_seconds']:.1f} | "
+        f"{direct['sweep_seconds'] / s['sweep_seconds']:.2f} |",
+        f"| `jaxbal.sweep(..., linear=False)`, default "
+        f"{default['memory_budget_bytes'] / mib:.0f} MiB budget: "
         f"{default['blocks']} block{'s' * (default['blocks'] != 1)} | "
         f"{default['sweep_states_per_second']:.3g} | "
         f"{default['first_call_seconds']:.1f} | "
@@ -57,21 +73,20 @@ def sweep_lines(s: dict) -> list[str]:
             f"| {label} | {b['states_per_second']:.3g} | {b['first_call_seconds']:.1f} | "
             f"{b['speedup_of_sweep']:.2f} |"
         )
-    m = s["block_memory_per_device"]
     lines += [
         "",
-        f"Sweep × the loop with arguments = {s['speedup_vs_loop']:.2f} (target ≥ "
-        f"{TARGETS['sweep_speedup_vs_design_loop']:.0f}: {_yes(s['speedup_target_met'])}). "
-        f"Memory of one block on one device ({m['points_per_device_per_call']:,} points), "
-        f"XLA's analysis: {m['total_bytes'] / mib:.2f} MiB (arguments "
-        f"{m['argument_bytes'] / mib:.2f}, of which robot and motion "
-        f"{m['argument_bytes_shared_robot_and_motion'] / mib:.2f}; temporaries "
-        f"{m['temp_bytes'] / mib:.2f}; outputs {m['output_bytes'] / mib:.2f}) for a "
-        f"{budget:.0f} MiB budget: {_yes(s['memory_within_budget'])} "
-        f"({_yes(s['memory_within_budget_without_shared_arguments'])} without the shared "
-        f"robot and motion); resident memory +{s['rss_growth_bytes_during_warm_sweep'] / mib:.0f}"
-        f" MiB during a warm sweep ({s['rss_growth_over_budget_times_devices']:.2f} × budget × "
-        "devices).",
+        f"Sweep × the loop with arguments = {s['speedup_vs_loop']:.1f} (target ≥ "
+        f"{TARGETS['sweep_speedup_vs_design_loop']:.0f}: {_yes(s['speedup_target_met'])}); "
+        f"with `linear=False` {direct['speedup_vs_loop']:.1f}; the two agree to "
+        f"{direct['max_relative_difference_vs_affine']:.1e} (relative to the largest "
+        "value). Memory of one block on one device, XLA's analysis: default "
+        f"{_memory(s['block_memory_per_device'], budget)}: "
+        f"{_yes(s['memory_within_budget'])}; `linear=False` "
+        f"{_memory(direct['block_memory_per_device'], budget)}: "
+        f"{_yes(direct['memory_within_budget'])}; resident memory "
+        f"+{direct['rss_growth_bytes_during_warm_sweep'] / mib:.0f} MiB during a warm "
+        f"`linear=False` sweep ({direct['rss_growth_over_budget_times_devices']:.2f} × "
+        "budget × devices).",
     ]
     return lines
 

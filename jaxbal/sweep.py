@@ -20,13 +20,25 @@ Cartesian product of ``axes`` and returns an :class:`xarray.Dataset`::
 * **Metric.** A name of :data:`jaxbal.design.METRICS` or any function of ``(robot,
   motion)`` returning an array, a tuple, a NamedTuple or a dict of arrays (one dataset
   variable each, named by ``output_dims`` for their own dimensions; ``units=``).
+* **Affine fast path** (``linear="auto"``, default). Along a fixed motion the shaking
+  wrench is affine in masses and inertias, so for the named wrench metrics
+  (``peak_force``, ``rms_force``, ``peak_moment``, ``rms_moment``) a sweep of
+  counter-masses, payloads or inertias computes the wrench and its derivatives in the
+  swept parameters once (one ``jacfwd`` along the samples) and each point from them:
+  ``t × 3 × p`` multiply-adds instead of the kinematics and dynamics at every sample.
+  The sweep first *verifies* affinity at 8 of its points (the direct wrench, to 1e-9 of
+  its gross scale); a swept length or distance fails that and is evaluated directly.
+  ``linear=True`` raises instead of falling back, ``linear=False`` never uses it (then
+  the result is the plain ``vmap`` of the metric bit for bit). The two agree to
+  rounding; the dataset's ``evaluation`` attribute says ``"affine"`` when it ran, and a
+  store is only resumed by the same evaluation. (:mod:`jaxbal._src.sweep_affine`.)
 * **Chunks.** The product is cut into blocks from ``memory_budget`` (bytes one device
   may use, from XLA's memory analysis of the compiled batch) or ``chunk_size``; every
   block is one call of one compiled program (``vmap``), split over all local devices
   with ``shard_map`` (several CPU devices with
   ``XLA_FLAGS=--xla_force_host_platform_device_count=N``). A point's value depends only
   on the per-device batch size (not on the devices or the chunking when that batch is
-  the same), so a sweep equals the plain ``vmap`` of the metric bit for bit.
+  the same), so a direct sweep equals the plain ``vmap`` of the metric bit for bit.
 * **Store.** With ``store="path.zarr"``, each finished block is written to a zarr
   store (readable with ``xarray.open_zarr(path, consolidated=False)`` or
   :func:`open_sweep`) and marked done; after an interruption ``resume=True``

@@ -31,10 +31,13 @@ def test_stored_sweep_covers_the_issue_size_agrees_with_the_loops_and_states_its
     result = json.loads((ROOT / "benchmarks" / "results" / "bench_cpu.json").read_text())
     sweep = result["sweep"]
     assert sweep["designs"] >= 100 and sweep["payloads"] >= 20 and sweep["samples"] >= 1000
-    assert sweep["blocks"] > 1
+    assert sweep["direct"]["blocks"] > 1  # the budget cuts the direct sweep into blocks
+    assert sweep["direct"]["max_relative_difference_vs_affine"] < 1e-12
     for name, loop in sweep["baselines"].items():
         assert loop["max_relative_difference_vs_sweep"] < 1e-12, name
     target = result["targets"]["sweep_speedup_vs_design_loop"]
     assert sweep["speedup_target_met"] == (sweep["speedup_vs_loop"] >= target)
     memory = sweep["block_memory_per_device"]["total_bytes"]
     assert sweep["memory_within_budget"] == (memory <= sweep["memory_budget_bytes"])
+    memory = sweep["direct"]["block_memory_per_device"]["total_bytes"]
+    assert sweep["direct"]["memory_within_budget"] == (memory <= sweep["memory_budget_bytes"])

@@ -114,3 +114,19 @@ def test_a_store_of_one_evaluation_is_not_resumed_by_the_other(arm, tmp_path):
         "peak_force", robot, motion, AXES, store=path, resume=True, progress=False, linear=False
     )
     assert "evaluation" not in again.attrs
+
+
+def test_a_massless_point_gives_an_exact_zero(arm):
+    """Linearised at zero masses: a point whose swept masses are all zero (links and
+    payload here, counter-masses zero by default) is an exact zero, as directly (found by
+    the fuzz: linearised at the first point it was 1e-15 N)."""
+    robot, motion = arm
+    axes = {
+        "payload": jaxbal.sweep.grid([3.0, 0.0]),
+        "m": jaxbal.sweep.grid([0.0, 1.0], where=lambda r: r.masses),
+    }
+    fast = jaxbal.sweep("peak_force", robot, motion, axes, progress=False)
+    assert fast.attrs["evaluation"] == "affine"
+    assert float(fast["value"].sel(payload=0.0, m=0.0)) == 0.0
+    direct = jaxbal.sweep("peak_force", robot, motion, axes, progress=False, linear=False)
+    np.testing.assert_allclose(fast["value"].values, direct["value"].values, rtol=1e-12)

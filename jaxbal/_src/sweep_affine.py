@@ -9,8 +9,11 @@ masses), at every sample ``t``
 
     w(t; θ) = w(t; θ₀) + J(t) (θ − θ₀),       J(t) = ∂w(t)/∂θ,
 
-exactly. :func:`affine_model` evaluates ``w(·; θ₀)`` and ``J`` once, along all samples
-(one ``jacfwd``), at the sweep's first point ``θ₀``; each point then costs ``t × 3 × p``
+exactly. :func:`affine_model` evaluates ``w(·; 0)`` and ``J`` once, along all samples
+(one ``jacfwd``), at ``θ₀ = 0`` (every swept mass zero: the terms are then summed as
+the direct evaluation sums ``Σ m_i a_i``, and a point whose masses are all zero gives an
+exact zero, as directly), or at the sweep's first point when the robot's model is
+affine only away from zero; each point then costs ``t × 3 × p``
 multiply-adds (``p`` swept scalars) instead of the robot's kinematics and dynamics at
 every sample. The named wrench metrics (``peak_force``, ``rms_force``, ``peak_moment``,
 ``rms_moment``) reduce it as the direct metrics do (:func:`~jaxbal._src.planning.peak_norm`,
@@ -65,7 +68,8 @@ class AffineWrench(eqx.Module):
             replaced at every point, for the mass and parameter checks).
         values: the swept parameters at this point ``{name: array}`` (the model's
             design: ``design()``/``with_design`` as a robot's).
-        origin: the parameters ``θ₀`` where ``offset`` and ``basis`` were evaluated.
+        origin: ``(p,)`` the flat parameters ``θ₀`` where ``offset`` and ``basis``
+            were evaluated (zero, or the sweep's first point).
         offset: ``(2, 3, t)`` force [N] and moment [N·m] at ``θ₀`` (components first:
             the samples are the contiguous, vectorised axis).
         basis: ``(2, p, 3, t)`` their derivatives in the ``p`` swept scalars.
@@ -76,7 +80,7 @@ class AffineWrench(eqx.Module):
 
     robot: object
     values: dict
-    origin: dict
+    origin: jax.Array
     offset: jax.Array
     basis: jax.Array
     offset_max: jax.Array
@@ -93,7 +97,7 @@ class AffineWrench(eqx.Module):
         """``(‖v(t)/s‖², s)``: the squared norms ``(t,)`` of the force (0) or moment (1)
         at :attr:`values`, divided by a power of two ``s`` (1 unless the magnitudes may
         exceed 1e150, so that the squares never overflow; exact either way)."""
-        delta = _flat(self.values, self.plan) - _flat(self.origin, self.plan)
+        delta = _flat(self.values, self.plan) - self.origin
         bound = self.offset_max[index] + jnp.sum(self.basis_max[index] * jnp.abs(delta))
         scale = jnp.where(bound > 1e150, jnp.exp2(jnp.ceil(jnp.log2(bound))), 1.0)
         inverse = 1.0 / scale
@@ -205,22 +209,27 @@ def affine_model(metric: str, robot, motion, axes: dict, plan: tuple):
         return None, np.inf
     shapes = {n: np.shape(v)[1:] for a in axes.values() for n, v in a.values.items()}
     layout = tuple((name, tuple(shapes[name])) for name, _, _ in plan)
-    origin = _point(axes, tuple(0 for _ in axes))
-    theta0 = np.asarray(_flat(origin, plan))
+    first = _point(axes, tuple(0 for _ in axes))
     points = np.stack([np.asarray(_flat(_point(axes, i), plan)) for i in _check_indices(axes)])
-    key = (plan, layout, theta0.tobytes(), points.tobytes())
+    key = (plan, layout, points.tobytes(), np.asarray(_flat(first, plan)).tobytes())
     for cached_robot, cached_motion, cached_key, result in _MODELS:
         if cached_robot is robot and cached_motion is motion and cached_key == key:
             return result
-    offset, basis = _linearise(plan, layout, robot, motion, jnp.asarray(theta0))
     direct = _direct(plan, layout, robot, motion, jnp.asarray(points))
-    deviation = _deviation(offset, basis, jnp.asarray(theta0), jnp.asarray(points), direct)
-    values = {n: jnp.asarray(origin[n], float) for n, _ in layout}
+    # θ₀ = 0 first (terms summed as directly, exact zeros stay zero); a robot whose
+    # model is affine only away from zero (the DUAL-V guards a division by the brass
+    # mass with max(m, 1e-12)) is linearised at the sweep's first point instead
+    for theta0 in (jnp.zeros(points.shape[1]), _flat(first, plan)):
+        offset, basis = _linearise(plan, layout, robot, motion, theta0)
+        deviation = _deviation(offset, basis, theta0, jnp.asarray(points), direct)
+        if deviation <= TOLERANCE:
+            break
+    values = {n: jnp.asarray(first[n], float) for n, _ in layout}
     offset = jnp.swapaxes(offset, -1, -2)  # (2, 3, t)
     basis = jnp.moveaxis(basis, -1, 1).swapaxes(-1, -2)  # (2, p, 3, t)
     offset_max = jnp.max(jnp.abs(offset), axis=(-2, -1))
     basis_max = jnp.max(jnp.abs(basis), axis=(-2, -1))
-    model = AffineWrench(robot, values, dict(values), offset, basis, offset_max, basis_max, plan)
+    model = AffineWrench(robot, values, theta0, offset, basis, offset_max, basis_max, plan)
     result = model, deviation
     _MODELS[:] = [(robot, motion, key, result), *_MODELS[:3]]
     return result
