@@ -83,10 +83,11 @@ def sweep_lines(s: dict) -> list[str]:
         f"{_memory(s['block_memory_per_device'], budget)}: "
         f"{_yes(s['memory_within_budget'])}; `linear=False` "
         f"{_memory(direct['block_memory_per_device'], budget)}: "
-        f"{_yes(direct['memory_within_budget'])}; resident memory "
-        f"+{direct['rss_growth_bytes_during_warm_sweep'] / mib:.0f} MiB during a warm "
-        f"`linear=False` sweep ({direct['rss_growth_over_budget_times_devices']:.2f} × "
-        "budget × devices).",
+        f"{_yes(direct['memory_within_budget'])}. Resident memory during a warm sweep: "
+        f"+{s['rss_growth_bytes_during_warm_sweep'] / mib:.0f} MiB "
+        f"({s['rss_growth_over_budget_times_devices']:.2f} × budget × devices), "
+        f"`linear=False` +{direct['rss_growth_bytes_during_warm_sweep'] / mib:.0f} MiB "
+        f"({direct['rss_growth_over_budget_times_devices']:.2f}).",
     ]
     return lines
 

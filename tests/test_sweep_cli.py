@@ -75,6 +75,10 @@ def test_cli_sweep_resume_and_plot_equal_the_python_call(tmp_path):
         (("counter_mass = [0.0, 2.0]", "mass = [0.0, 2.0]"), "parameter 'mass'"),
         (("linspace = [0.0, 1.0, 3]", "linspace = [0.0, 1.0]"), "linspace must be"),
         (("samples = 33", "samples = 33\nspeed = 2"), "unknown key(s) ['speed']"),
+        (
+            ('metric = ["peak_force", "peak_moment"]', 'metric = "peak_force"\nlinear = "yes"'),
+            "linear must be true, false",
+        ),  # fmt: skip
     ],
 )
 def test_bad_specs_exit_2_with_one_line_and_no_store(tmp_path, edit, message):
@@ -93,3 +97,20 @@ def test_unknown_backend_and_missing_store_exit_2(tmp_path):
     assert bad.exit_code == 2 and "['local', 'ray']" in bad.output
     missing = runner.invoke(app, ["plot", str(tmp_path / "none.zarr")])
     assert missing.exit_code == 2 and "no sweep store" in missing.output
+
+
+def test_linear_key_reaches_the_sweep(tmp_path):
+    """``linear`` in the spec: one named wrench metric is affine by default, not with
+    ``linear = false``."""
+    one = SPEC.replace('metric = ["peak_force", "peak_moment"]', 'metric = "peak_force"')
+    spec = load_spec(_write(tmp_path, one))
+    assert "linear" not in spec.options
+    fast = jaxbal.sweep(spec.metric, spec.robot, spec.motion, spec.axes, progress=False,
+                        **spec.options)  # fmt: skip
+    assert fast.attrs["evaluation"] == "affine"
+    spec = load_spec(_write(tmp_path, one.replace('"peak_force"', '"peak_force"\nlinear = false')))
+    assert spec.options["linear"] is False
+    direct = jaxbal.sweep(spec.metric, spec.robot, spec.motion, spec.axes, progress=False,
+                          **spec.options)  # fmt: skip
+    assert "evaluation" not in direct.attrs
+    np.testing.assert_allclose(fast["value"].values, direct["value"].values, rtol=1e-12)

@@ -96,7 +96,8 @@ class AffineWrench(eqx.Module):
     def squares(self, index: int) -> tuple[jax.Array, jax.Array]:
         """``(‖v(t)/s‖², s)``: the squared norms ``(t,)`` of the force (0) or moment (1)
         at :attr:`values`, divided by a power of two ``s`` (1 unless the magnitudes may
-        exceed 1e150, so that the squares never overflow; exact either way)."""
+        exceed 1e150, so that the squares never overflow; a power of two scales
+        exactly, short of an underflow)."""
         delta = _flat(self.values, self.plan) - self.origin
         bound = self.offset_max[index] + jnp.sum(self.basis_max[index] * jnp.abs(delta))
         scale = jnp.where(bound > 1e150, jnp.exp2(jnp.ceil(jnp.log2(bound))), 1.0)

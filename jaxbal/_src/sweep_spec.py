@@ -5,6 +5,7 @@ Example (``experiments/sweeps/dual_v_payload.toml``)::
 
     metric = ["peak_force", "rms_torque"]     # a name of jaxbal.design.METRICS, or a list
     memory_budget_mib = 256                   # optional; or chunk_size = 4096
+    linear = "auto"                           # optional: the affine fast path (jaxbal.sweep)
 
     [robot]
     name = "dual_v"                           # built-in (jaxbal.robots.ROBOTS), or
@@ -53,7 +54,7 @@ __all__ = ["SweepSpec", "load_spec"]
 _MOTION_KINDS = ("end_effector", "trapezoid")
 _PROFILES = ("quintic", "bang_bang")
 _SAMPLES = ("sobol", "halton", "uniform")
-_TOP = {"metric", "memory_budget_mib", "chunk_size", "robot", "motion", "axes"}
+_TOP = {"metric", "memory_budget_mib", "chunk_size", "linear", "robot", "motion", "axes"}
 
 
 @dataclass
@@ -263,6 +264,11 @@ def load_spec(path) -> SweepSpec:
     _check_parameters(robot, axes, theta)
     metric, units = _metric(_need(table, "metric", path.name))
     options = {}
+    if "linear" in table:  # the affine fast path: "auto" (default), true or false
+        linear = table["linear"]
+        if linear not in (True, False, "auto"):
+            raise ValueError(f'{path.name}: linear must be true, false or "auto", got {linear!r}')
+        options["linear"] = linear
     if "memory_budget_mib" in table:
         options["memory_budget"] = int(float(table["memory_budget_mib"]) * 2**20)
     if "chunk_size" in table:
