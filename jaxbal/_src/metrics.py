@@ -104,14 +104,19 @@ def _batched(evaluate, robot: Robot, motion: Motion, what: str, jerk: bool = Fal
     """
     motion = motion if jerk else as_motion(motion)
     if is_traced(robot, motion):
-        return jax.vmap(lambda *state: evaluate(robot, *state))(*motion)
+        return _samples(evaluate, robot, motion)
     checked_parameters(robot, checked_bodies(robot, None))
     finite = jnp.all(jnp.isfinite(jnp.concatenate(motion, axis=-1)), axis=-1)
     raise_if_invalid(finite, "non-finite state (q, qd, qdd) in the motion at samples",
                      jnp.arange(finite.shape[0]))  # fmt: skip
     with runtime_checks(False):  # checked above and below, eagerly
-        out = jax.vmap(lambda *state: evaluate(robot, *state))(*motion)
+        out = _samples(evaluate, robot, motion)
     return checked_finite(what, robot, out)
+
+
+def _samples(evaluate, robot: Robot, motion):
+    """``evaluate(robot, *state)`` at every sample of the motion (``vmap``, unchecked)."""
+    return jax.vmap(lambda *state: evaluate(robot, *state))(*motion)
 
 
 def _wrench(robot: Robot, motion: Motion):
@@ -158,7 +163,7 @@ def _peak(evaluate, pick, robot: Robot, motion: Motion, what: str) -> Scalar:
 
 
 def _all_samples(evaluate, pick, robot, motion):
-    return pick(jax.vmap(lambda *state: evaluate(robot, *state))(*motion))
+    return pick(_samples(evaluate, robot, motion))
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1))
