@@ -1,8 +1,9 @@
 """Counter-mass co-design of any robot: optimise its design variables for a fixed motion.
 
 :func:`codesign` minimises a weighted sum of metrics (:mod:`jaxbal._src.metrics`) over
-the robot's named design variables (:meth:`jaxbal.Robot.design`) with optax L-BFGS
-(:func:`jaxbal.minimize`). The joint motion is *held fixed* (sequential design, as in
+the robot's named design variables (:meth:`jaxbal.Robot.design`) with L-BFGS
+(:mod:`jaxbal._src.lbfgs` by default, or an optax optimiser in
+:func:`jaxbal.minimize`). The joint motion is *held fixed* (sequential design, as in
 the papers: counter-masses do not change the inverse kinematics).
 
 **Loss.** With metric values ``v_i``, weights ``w_i`` and scales ``s_i``::
@@ -28,8 +29,16 @@ fraction of the range inside both ends. The optimiser may still reach a bound ex
 
 **Compilation.** The loss is a module-level function of ``(params, robot, motion,
 problem)``; names, metric choices and bound kinds are static fields of ``problem``, all
-numbers are array leaves. A second call on a robot of the same structure, with a motion
-of the same length and the same metric objects, reuses the compiled L-BFGS loop
+numbers are array leaves. By default the only compiled program is the loss's value and
+gradient (with the metric values, the scale floors and a validity mask of the given
+robot and motion): a host-driven L-BFGS (:mod:`jaxbal._src.lbfgs`) calls it once per
+iteration, so the first co-design of a process compiles one copy of the dynamics, and
+the program, free of runtime-error callbacks, is kept by the persistent compilation
+cache for the next process. An invalid robot or motion (e.g. a negative mass set with
+``eqx.tree_at``) is raised eagerly, with the names of the offending values. With
+``optimizer=`` an optax transformation, the whole loop is compiled
+(:func:`jaxbal.minimize`). Either way a second call on a robot of the same structure,
+with a motion of the same length and the same metric objects, reuses the compiled code
 (different payloads, masses, weights, bounds or motions do not retrace). A metric given
 as a callable is part of the compiled structure: define it once, at module level.
 
@@ -45,9 +54,11 @@ from collections.abc import Mapping
 from typing import Any, NamedTuple
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._src.lbfgs import lbfgs
 from jaxbal._src.metrics import (
     ADDED_MASS_VARIABLES,
     Metric,
@@ -59,7 +70,7 @@ from jaxbal._src.metrics import (
     metric_name,
     resolve_metric,
 )
-from jaxbal._src.momentum import total_mass
+from jaxbal._src.momentum import checked_bodies, checked_parameters, robot_faulty, total_mass
 from jaxbal._src.optimize import minimize
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
@@ -173,6 +184,67 @@ def _combine(values: Array, constrained: Array, problem: _Problem) -> Scalar:
     return loss
 
 
+def _everything(problem: _Problem) -> tuple:
+    """The objective terms, then the constraint metrics that are not also terms."""
+    return problem.terms + tuple(m for m in problem.constrained if m not in problem.terms)
+
+
+def _loss_and_values(params, robot: Robot, motion: Motion, problem: _Problem, at_start):
+    """``(loss, metric values (k,))`` at the parameters ``r``; with ``at_start`` (a
+    traced bool) the metrics of ``robot`` as given (the scales are then placeholders)."""
+    designed = robot.with_design(_to_design(params, problem))
+    dynamic, static = eqx.partition(robot, eqx.is_array)
+    chosen = jax.tree_util.tree_map(
+        lambda given, new: jnp.where(at_start, given, new),
+        dynamic,
+        eqx.filter(designed, eqx.is_array),
+    )
+    everything = _everything(problem)
+    values = _values(eqx.combine(chosen, static), motion, everything)
+    n = len(problem.terms)
+    where = jnp.asarray([everything.index(m) for m in problem.constrained], dtype=int)
+    constrained = values[where] if problem.constrained else None
+    return _combine(values[:n], constrained, problem), values
+
+
+@eqx.filter_jit
+def _loss_grad(params, robot: Robot, motion: Motion, problem: _Problem, at_start):
+    """The one compiled program of the default co-design: loss, gradient and metric
+    values, the metrics' scale floors, and whether the given robot or motion is
+    invalid (a mask, raised by the caller: no runtime-error callbacks, so that the
+    program is stored in the persistent compilation cache). Runtime checks are off
+    while it is traced (line-search trials may be non-finite)."""
+    with runtime_checks(False):
+        (loss, values), grad = jax.value_and_grad(_loss_and_values, has_aux=True)(
+            params, robot, motion, problem, at_start
+        )
+    floors = jnp.stack([_floor(robot, motion, m) for m in _everything(problem)])
+    faulty = robot_faulty(robot) | ~jnp.all(jnp.isfinite(jnp.stack(list(motion))))
+    return loss, grad, values, floors, faulty
+
+
+def _combine_numpy(values, constrained, problem: _Problem) -> float:
+    """:func:`_combine` in NumPy (the loss of the starting design, on the host)."""
+    loss = np.sum(np.asarray(problem.weights) * (values / np.asarray(problem.scales)) ** 2)
+    if problem.constrained:
+        bounds, scales = np.asarray(problem.bounds), np.asarray(problem.bound_scales)
+        excess = np.maximum((constrained - bounds) / scales, 0.0)
+        loss = loss + float(problem.penalty) * np.sum(excess**2)
+    return float(loss)
+
+
+def _raise_invalid_start(robot: Robot, motion: Motion, names, before) -> None:
+    """The named error of a start the compiled co-design flagged (eager checks)."""
+    checked_parameters(robot, None)
+    checked_bodies(robot, None)
+    for name, value in zip(("q", "qd", "qdd"), motion, strict=True):
+        value = np.asarray(value)
+        if not np.all(np.isfinite(value)):
+            raise ValueError(f"motion {name} must be finite, got {value[~np.isfinite(value)]!r}")
+    listed = {n: float(v) for n, v in zip(names, before, strict=True)}
+    raise ValueError(f"metrics of the starting design are not finite: {listed}")
+
+
 def design_loss(params: dict[str, Array], robot: Robot, motion: Motion, problem: _Problem):
     """The co-design loss (module doc) at the parameters ``r`` (module level: the
     compiled L-BFGS loop of :func:`jaxbal.minimize` is cached on its identity)."""
@@ -247,6 +319,66 @@ def _bounds(robot, free, lower, upper):
     return tuple(lows), tuple(highs), tuple(two_sided)
 
 
+def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol):
+    """:func:`codesign` with the default optimiser: the host-driven L-BFGS of
+    :mod:`jaxbal._src.lbfgs` around one compiled program (:func:`_loss_grad`)."""
+    names = problem.free
+    params = _to_params(x0, problem)
+    shapes = [np.shape(params[name]) for name in names]
+    sizes = [int(np.prod(shape, dtype=int)) for shape in shapes]
+
+    def unravel(x):
+        parts = np.split(np.asarray(x, dtype=float), np.cumsum(sizes)[:-1])
+        return {n: p.reshape(sh) for n, p, sh in zip(names, parts, shapes, strict=True)}
+
+    def ravel(tree):
+        return np.concatenate([np.ravel(np.asarray(tree[n], dtype=float)) for n in names])
+
+    everything = _everything(problem)
+    labels = [metric_name(m) for m in everything]
+    n = len(problem.terms)
+    where = np.asarray([everything.index(m) for m in problem.constrained], dtype=int)
+    # the starting design as given: its metric values set the scales (module doc)
+    _, _, before, floors, faulty = _loss_grad(params, robot, motion, problem, np.asarray(True))
+    before, floors = np.asarray(before), np.asarray(floors)
+    if bool(faulty) or not np.all(np.isfinite(before)):
+        _raise_invalid_start(robot, motion, labels, before)
+    scales = np.maximum(np.abs(before[:n]), floors[:n])
+    bound_scales = np.maximum(np.abs(np.asarray(problem.bounds)), floors[where])
+    problem = eqx.tree_at(
+        lambda p: (p.scales, p.bound_scales),
+        problem,
+        (jnp.asarray(scales), jnp.asarray(bound_scales)),
+    )
+    at_start = np.asarray(False)
+
+    def evaluate(x):
+        loss, grad, values, _, _ = _loss_grad(unravel(x), robot, motion, problem, at_start)
+        return float(loss), ravel(grad), values
+
+    result = lbfgs(evaluate, ravel(params), max_steps=max_steps, gtol=gtol)
+    optimised, optimised_design = _designed(robot, unravel(result.x), problem)
+    after = np.asarray(result.aux)
+    bounds = np.asarray(problem.bounds)
+    excess = after[where] - bounds
+    return DesignSolution(
+        design=optimised_design,
+        robot=optimised,
+        value=np.asarray(result.value),
+        initial_value=np.asarray(_combine_numpy(before[:n], before[where], problem)),
+        metrics={name: (before[i], after[i]) for i, name in enumerate(labels)},
+        constraints={
+            metric_name(m): (after[i], bounds[k])
+            for k, (m, i) in enumerate(zip(problem.constrained, where, strict=True))
+        },
+        feasible=np.all(excess <= FEASIBILITY_RTOL * bound_scales),
+        converged=np.asarray(result.converged),
+        steps=np.asarray(result.steps),
+        grad_norm=np.asarray(np.linalg.norm(result.grad)),
+        history=result.history,
+    )
+
+
 def codesign(
     robot: Robot,
     motions,
@@ -281,8 +413,11 @@ def codesign(
             may be given, the non-free ones are simply set.
         max_steps: L-BFGS iteration cap.
         gtol: stop when the gradient norm of the loss falls below this.
-        optimizer: an optax transformation (default optax L-BFGS); pass the same
-            object on every call to reuse the compiled loop.
+        optimizer: ``None`` (default): L-BFGS with a backtracking line search driven
+            from the host around one compiled value-and-gradient (fast first call, see
+            the module doc); or an optax transformation (e.g. ``optax.lbfgs()``,
+            ``optax.adam(1e-2)``) run as one compiled loop by :func:`jaxbal.minimize`;
+            pass the same object on every call to reuse the compiled loop.
         constraints: optional ``{metric: upper bound [SI]}``, e.g. an added-mass budget
             ``{"added_mass": 2.0}``, enforced by the quadratic penalty.
         penalty: weight ``P`` of the constraint penalty.
@@ -294,7 +429,9 @@ def codesign(
         ValueError: an unknown metric or design-variable name (the message lists the
             valid ones), an empty ``free``, a non-finite start or bound, a start
             outside the bounds, a negative budget of a named metric, a negative or
-            non-finite ``penalty``, ``max_steps < 1``, or a motion of the wrong shape.
+            non-finite ``penalty``, ``max_steps < 1``, a motion of the wrong shape,
+            or an invalid robot or motion (negative or non-finite masses, inertias or
+            parameters, a non-finite state, non-finite starting metrics).
     """
     motion = as_motion(motions)
     if motion.q.ndim != 2 or motion.q.shape[1] != robot.dof:
@@ -341,12 +478,15 @@ def codesign(
             raise ValueError(f"start of {name!r} = {x0[name]!r} lies outside its bounds")
 
     everything = terms + tuple(m for m in constrained if m not in terms)
-    # the bookkeeping around the two compiled programs (_evaluate, the L-BFGS loop) is
-    # NumPy or one small compiled function: eager jnp operations each compiled a tiny
-    # XLA program on the first co-design of a process (~40 of them, ~0.4 s)
-    before, floors = (np.asarray(x) for x in _evaluate(robot, motion, everything))
-    scales = np.maximum(np.abs(before[: len(terms)]), floors[: len(terms)])
     where = np.asarray([everything.index(m) for m in constrained], dtype=int)
+    if optimizer is None:  # scales set from the starting design in _codesign_compact
+        scales, floors = np.ones(len(terms)), np.full(len(everything), SCALE_FLOOR)
+    else:
+        # the bookkeeping around the two compiled programs (_evaluate, the L-BFGS loop)
+        # is NumPy or one small compiled function: eager jnp operations each compiled a
+        # tiny XLA program on the first co-design of a process (~40 of them, ~0.4 s)
+        before, floors = (np.asarray(x) for x in _evaluate(robot, motion, everything))
+        scales = np.maximum(np.abs(before[: len(terms)]), floors[: len(terms)])
     bound_scales = np.maximum(np.abs(bounds), floors[where])
     problem = _Problem(
         free=free,
@@ -361,6 +501,8 @@ def codesign(
         bound_scales=jnp.asarray(bound_scales, dtype=float),
         penalty=jnp.asarray(penalty, dtype=float),
     )
+    if optimizer is None:
+        return _codesign_compact(robot, motion, x0, problem, max_steps, gtol)
     with runtime_checks(False):  # line-search trials may be non-finite (see validation)
         solution = minimize(
             design_loss,

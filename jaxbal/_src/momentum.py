@@ -46,6 +46,31 @@ def checked_state(robot: Robot, q, qd, qdd):
     return state[0], state[1], state[2]
 
 
+def _body_faults(robot: Robot):
+    """``(bodies, inertia diagonals, bad mass (b,), bad inertia (b,))`` (masks)."""
+    bodies = robot.mass_properties()
+    diagonal = jnp.diagonal(bodies.inertia, axis1=-2, axis2=-1)
+    bad_mass = ~(jnp.isfinite(bodies.mass) & (bodies.mass >= -ROUNDING))
+    finite = jnp.all(jnp.isfinite(bodies.inertia), axis=(-2, -1))
+    signed = getattr(type(robot), "signed_inertias", False)
+    bad_inertia = ~finite if signed else ~finite | jnp.any(diagonal < -ROUNDING, -1)
+    return bodies, diagonal, bad_mass, bad_inertia
+
+
+def robot_faulty(robot: Robot):
+    """Scalar bool (traceable, never raises): would :func:`checked_bodies` or
+    :func:`checked_parameters` reject ``robot``? For compiled code that must stay free of
+    runtime-error callbacks (e.g. to be stored in the persistent compilation cache): it
+    returns the mask, and the caller raises the named error eagerly."""
+    _, _, bad_mass, bad_inertia = _body_faults(robot)
+    faulty = jnp.any(bad_mass) | jnp.any(bad_inertia)
+    for _, x in _parameters(robot):
+        faulty = faulty | ~jnp.all(jnp.isfinite(x))
+    for name in getattr(type(robot), "nonnegative_parameters", ()):
+        faulty = faulty | jnp.any(jnp.asarray(getattr(robot, name)) < -ROUNDING)
+    return faulty
+
+
 def checked_bodies(robot: Robot, value):
     """``value``, guarded by the robot's mass properties as the physics sees them: every
     body mass and inertia diagonal finite and ≥ 0 (derived masses included, e.g. the
@@ -53,12 +78,7 @@ def checked_bodies(robot: Robot, value):
     quantity that is zero up to rounding passes). A robot whose class sets
     ``signed_inertias = True`` (an exact equivalent model, e.g. the DUAL-V's split model
     with residual inertias ``I − m·p·(l − p)``) is checked for finite inertias only."""
-    bodies = robot.mass_properties()
-    diagonal = jnp.diagonal(bodies.inertia, axis1=-2, axis2=-1)
-    bad_mass = ~(jnp.isfinite(bodies.mass) & (bodies.mass >= -ROUNDING))
-    finite = jnp.all(jnp.isfinite(bodies.inertia), axis=(-2, -1))
-    signed = getattr(type(robot), "signed_inertias", False)
-    bad_inertia = ~finite if signed else ~finite | jnp.any(diagonal < -ROUNDING, -1)
+    bodies, diagonal, bad_mass, bad_inertia = _body_faults(robot)
     message = "body masses must be finite and >= 0 [kg]"
     value = guard(value, bad_mass, message, bodies.mass, bodies.names)
     message = "body inertias must be finite with diagonal >= 0 [kg m^2]"
