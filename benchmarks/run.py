@@ -90,7 +90,7 @@ def run(args) -> dict:
     print("[bench] first calls in fresh processes", flush=True)
     result["first_call"] = {
         name: {"checks_on": first_calls(name, True), "checks_off": first_calls(name, False)}
-        for name in ("planar_2r", "dual_v")
+        for name in robots
     }
     print("[bench] co-design vs SciPy SLSQP", flush=True)
     result["codesign"] = codesign_bench.bench_all()

@@ -297,7 +297,7 @@ def test_compiled_codesign_has_no_callbacks(motion_2r):
     """The one compiled program of the default co-design carries no host callbacks (no
     runtime-error checks), so JAX's persistent compilation cache can store it: a second
     Python process starts warm."""
-    from jaxbal._src import design
+    from jaxbal._src import design_loss as design
 
     arm = _arm_2r()
     params = {"counter_mass": jnp.ones(2)}

@@ -33,18 +33,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.design import (
-    CONSTRAINT_PENALTY,
-    FEASIBILITY_RTOL,
-    _bounds,
-    _combine,
-    _floor,
-    _objective_terms,
-    _Problem,
-    _to_design,
-    _to_params,
-    _values,
-)
+from jaxbal._src.design import CONSTRAINT_PENALTY, FEASIBILITY_RTOL, _bounds, _objective_terms
+from jaxbal._src.design_loss import _combine, _floor, _Problem, _to_design, _to_params, _values
 from jaxbal._src.metrics import Motion, check_design_names, metric_name, resolve_metric
 from jaxbal._src.optimize import minimize
 from jaxbal._src.robot import Robot

@@ -32,7 +32,7 @@ from jaxbal._src.validation import (
     check_shape,
     guard,
     is_traced,
-    runtime_checks_enabled,
+    runtime_checks,
 )
 
 
@@ -264,28 +264,38 @@ def shaking_wrench(
     References:
         Briot et al. (2012), eq (1); van der Wijk et al. (2013), section 2.
     """
-    return _straight_wrench(robot, q, qd, qdd, gravity)
+    return _shaking_wrench(robot, q, qd, qdd, gravity)
 
 
 def _shaking_wrench(robot: Robot, q, qd, qdd, gravity):
     q, qd, qdd = checked_state(robot, q, qd, qdd)
-    if isinstance(robot, PlanarRobot):
-        force, moment = planar_inertial_wrench(robot, q, qd, qdd)
-    else:
-        force, moment = inertial_wrench(robot, q, qd, qdd)
+    force, moment = _straight_physics(robot, q, qd, qdd, gravity)
     # Both outputs guarded: a check on the force alone was dropped from compiled code
     # that uses only the moment (peak_moment of a NaN-inertia robot was finite).
     force, moment = checked_parameters(robot, checked_bodies(robot, (force, moment)))
-    if gravity is not None:
-        g = jnp.asarray(gravity, dtype=float)
-        check_shape("gravity", g, (3,))
-        bodies = robot.mass_properties()
-        positions = body_com_positions(robot, q)
-        force = force + jnp.sum(bodies.mass) * g
-        moment = moment + weighted_sum(
-            bodies.mass, cross(positions, jnp.broadcast_to(g, positions.shape))
-        )
     return checked_finite("shaking wrench", robot, (force, moment))
 
 
-_straight_wrench = straight_line(_shaking_wrench, context=runtime_checks_enabled)
+def _physics(robot: Robot, q, qd, qdd, gravity):
+    """The unchecked wrench (:func:`shaking_wrench` wraps it in the value checks)."""
+    with runtime_checks(False):  # none inside; the code generated is keyed without it
+        if isinstance(robot, PlanarRobot):
+            force, moment = planar_inertial_wrench(robot, q, qd, qdd)
+        else:
+            force, moment = inertial_wrench(robot, q, qd, qdd)
+        if gravity is not None:
+            g = jnp.asarray(gravity, dtype=float)
+            check_shape("gravity", g, (3,))
+            bodies = robot.mass_properties()
+            positions = body_com_positions(robot, q)
+            force = force + jnp.sum(bodies.mass) * g
+            moment = moment + weighted_sum(
+                bodies.mass, cross(positions, jnp.broadcast_to(g, positions.shape))
+            )
+    return force, moment
+
+
+# The checks stay outside the generated straight-line code, so that one program serves
+# checked and unchecked evaluations alike (e.g. a gradient's value over every sample and
+# its re-evaluation at the peak sample, which skips the checks).
+_straight_physics = straight_line(_physics)

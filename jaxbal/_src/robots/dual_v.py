@@ -371,28 +371,15 @@ def dual_v(
         payload: point mass at the platform centre [kg].
     """
     arm = _per_arm
-    robot = DualV(
-        l1=arm(0.28),
-        l2=arm(0.28),
-        a=jnp.asarray(0.396),
-        b=jnp.asarray(0.11),
-        m1=arm(1.169),
-        p1=arm(0.0737),
-        inertia1=arm(0.012967),
-        m2=arm(0.606),
-        p2=arm(0.1279),
-        inertia2=arm(0.006417),
-        m5=jnp.asarray(0.899),
-        inertia5=jnp.asarray(0.008168),
+    robot = DualV(  # Table 1, row by row
+        l1=arm(0.28), l2=arm(0.28), a=jnp.asarray(0.396), b=jnp.asarray(0.11),
+        m1=arm(1.169), p1=arm(0.0737), inertia1=arm(0.012967),
+        m2=arm(0.606), p2=arm(0.1279), inertia2=arm(0.006417),
+        m5=jnp.asarray(0.899), inertia5=jnp.asarray(0.008168),
         payload=jnp.asarray(payload, dtype=float),
-        m_cm=arm(7.983),
-        p_cm=arm(0.0575),
-        inertia_cm=arm(0.026845),
-        m_tun=arm(0.188),
-        p_tun=arm(0.080),
-        tuning_scale=arm(1.0),
-        inertia_act=arm(0.0041),
-    )
+        m_cm=arm(7.983), p_cm=arm(0.0575), inertia_cm=arm(0.026845),
+        m_tun=arm(0.188), p_tun=arm(0.080), tuning_scale=arm(1.0), inertia_act=arm(0.0041),
+    )  # fmt: skip
     if not tuning_masses:
         robot = robot.without_tuning_masses()
     if not counter_masses:

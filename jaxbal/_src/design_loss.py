@@ -1,0 +1,174 @@
+"""The co-design loss and its one compiled program (see :mod:`jaxbal._src.design`).
+
+The loss is a function of the unconstrained parameters ``r`` of the bounded design
+variables, the robot, the motion and a :class:`_Problem` (names, metric choices and
+bound kinds static; every number an array leaf), so that the compiled code is reused
+for any robot of the same structure. :func:`_loss_grad` is the program the default
+co-design calls once per L-BFGS iteration.
+
+References:
+    Liu & Nocedal (1989), L-BFGS (the parametrisation keeps it unconstrained).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxbal._src.metrics import ADDED_MASS_VARIABLES, Motion, base_inertia, resolve_metric
+from jaxbal._src.momentum import checked_bodies, checked_parameters, robot_faulty, total_mass
+from jaxbal._src.robot import Robot
+from jaxbal._src.types import Array, Scalar
+from jaxbal._src.validation import runtime_checks
+
+#: distance [SI units of the variable] that a variable starting at its lower bound is
+#: moved inside, so that its square-root parameter is not at a stationary point.
+START_OFFSET = 1e-4
+#: floor of the scale of a metric other than the added mass and inertia [SI].
+SCALE_FLOOR = 1e-12
+
+
+class _Problem(eqx.Module):
+    """Everything the loss needs besides the parameters, robot and motion: names and
+    metric choices static (part of the compiled structure), numbers as array leaves."""
+
+    free: tuple[str, ...] = eqx.field(static=True)
+    two_sided: tuple[bool, ...] = eqx.field(static=True)
+    terms: tuple[Any, ...] = eqx.field(static=True)
+    constrained: tuple[Any, ...] = eqx.field(static=True)
+    lower: tuple[Array, ...]
+    upper: tuple[Array, ...]
+    weights: Array
+    scales: Array
+    bounds: Array
+    bound_scales: Array
+    penalty: Array
+
+
+def _to_design(params: dict[str, Array], problem: _Problem) -> dict[str, Array]:
+    """The bounded design variables from the unconstrained parameters ``r``."""
+    design = {}
+    for name, two, lo, hi in zip(
+        problem.free, problem.two_sided, problem.lower, problem.upper, strict=True
+    ):
+        r = params[name]
+        design[name] = lo + (hi - lo) * jnp.sin(r) ** 2 if two else lo + r**2
+    return design
+
+
+def _to_params(design: Mapping[str, np.ndarray], problem: _Problem) -> dict[str, Array]:
+    """Parameters ``r`` of a design, moved :data:`START_OFFSET` inside the bounds."""
+    params = {}
+    for name, two, lo, hi in zip(
+        problem.free, problem.two_sided, problem.lower, problem.upper, strict=True
+    ):
+        lo, hi, x = np.asarray(lo), np.asarray(hi), np.asarray(design[name], dtype=float)
+        if two:
+            span = hi - lo
+            inset = np.minimum(START_OFFSET / span, 0.25)
+            fraction = np.clip((x - lo) / span, inset, 1.0 - inset)
+            params[name] = jnp.asarray(np.arcsin(np.sqrt(fraction)))
+        else:
+            params[name] = jnp.asarray(np.sqrt(np.maximum(x - lo, START_OFFSET)))
+    return params
+
+
+def _values(robot: Robot, motion: Motion, metrics: tuple) -> Array:
+    return jnp.stack([jnp.asarray(resolve_metric(m)(robot, motion)) for m in metrics])
+
+
+def _combine(values: Array, constrained: Array, problem: _Problem) -> Scalar:
+    """The loss from the metric values of the objective terms and of the constraints."""
+    loss = jnp.sum(problem.weights * (values / problem.scales) ** 2)
+    if problem.constrained:
+        excess = jnp.maximum((constrained - problem.bounds) / problem.bound_scales, 0.0)
+        loss = loss + problem.penalty * jnp.sum(excess**2)
+    return loss
+
+
+def _everything(problem: _Problem) -> tuple:
+    """The objective terms, then the constraint metrics that are not also terms."""
+    return problem.terms + tuple(m for m in problem.constrained if m not in problem.terms)
+
+
+def _loss_and_values(params, robot: Robot, motion: Motion, problem: _Problem, at_start):
+    """``(loss, metric values (k,))`` at the parameters ``r``; with ``at_start`` (a
+    traced bool) the metrics of ``robot`` as given (the scales are then placeholders)."""
+    designed = robot.with_design(_to_design(params, problem))
+    dynamic, static = eqx.partition(robot, eqx.is_array)
+    chosen = jax.tree_util.tree_map(
+        lambda given, new: jnp.where(at_start, given, new),
+        dynamic,
+        eqx.filter(designed, eqx.is_array),
+    )
+    everything = _everything(problem)
+    values = _values(eqx.combine(chosen, static), motion, everything)
+    n = len(problem.terms)
+    where = jnp.asarray([everything.index(m) for m in problem.constrained], dtype=int)
+    constrained = values[where] if problem.constrained else None
+    return _combine(values[:n], constrained, problem), values
+
+
+@eqx.filter_jit
+def _loss_grad(params, robot: Robot, motion: Motion, problem: _Problem, at_start):
+    """The one compiled program of the default co-design: loss, gradient and metric
+    values, the metrics' scale floors, and whether the given robot or motion is
+    invalid (a mask, raised by the caller: no runtime-error callbacks, so that the
+    program is stored in the persistent compilation cache). Runtime checks are off
+    while it is traced (line-search trials may be non-finite)."""
+    with runtime_checks(False):
+        (loss, values), grad = jax.value_and_grad(_loss_and_values, has_aux=True)(
+            params, robot, motion, problem, at_start
+        )
+    floors = jnp.stack([_floor(robot, motion, m) for m in _everything(problem)])
+    faulty = robot_faulty(robot) | ~jnp.all(jnp.isfinite(jnp.stack(list(motion))))
+    return loss, grad, values, floors, faulty
+
+
+def _combine_numpy(values, constrained, problem: _Problem) -> float:
+    """:func:`_combine` in NumPy (the loss of the starting design, on the host)."""
+    loss = np.sum(np.asarray(problem.weights) * (values / np.asarray(problem.scales)) ** 2)
+    if problem.constrained:
+        bounds, scales = np.asarray(problem.bounds), np.asarray(problem.bound_scales)
+        excess = np.maximum((constrained - bounds) / scales, 0.0)
+        loss = loss + float(problem.penalty) * np.sum(excess**2)
+    return float(loss)
+
+
+def _raise_invalid_start(robot: Robot, motion: Motion, names, before) -> None:
+    """The named error of a start the compiled co-design flagged (eager checks)."""
+    checked_parameters(robot, None)
+    checked_bodies(robot, None)
+    for name, value in zip(("q", "qd", "qdd"), motion, strict=True):
+        value = np.asarray(value)
+        if not np.all(np.isfinite(value)):
+            raise ValueError(f"motion {name} must be finite, got {value[~np.isfinite(value)]!r}")
+    listed = {n: float(v) for n, v in zip(names, before, strict=True)}
+    raise ValueError(f"metrics of the starting design are not finite: {listed}")
+
+
+def design_loss(params: dict[str, Array], robot: Robot, motion: Motion, problem: _Problem):
+    """The co-design loss (module doc) at the parameters ``r`` (module level: the
+    compiled L-BFGS loop of :func:`jaxbal.minimize` is cached on its identity)."""
+    candidate = robot.with_design(_to_design(params, problem))
+    values = _values(candidate, motion, problem.terms)
+    constrained = _values(candidate, motion, problem.constrained) if problem.constrained else None
+    return _combine(values, constrained, problem)
+
+
+def _floor(robot: Robot, motion: Motion, metric) -> Scalar:
+    """Scale floor of a metric: the bare robot's mass or base inertia for the added
+    ones, :data:`SCALE_FLOOR` otherwise."""
+    if metric not in ("added_mass", "added_inertia"):
+        return jnp.asarray(SCALE_FLOOR)
+    design = robot.design()
+    bare = robot.with_design(
+        {n: jnp.zeros_like(design[n]) for n in ADDED_MASS_VARIABLES if n in design}
+    )
+    reference = total_mass(bare) if metric == "added_mass" else base_inertia(bare, motion.q[0])
+    return jnp.maximum(reference, SCALE_FLOOR)
