@@ -6,8 +6,8 @@ Run with ``make bench``; results go to ``benchmarks/results/bench_<backend>.json
 (atomic write) and the table between the bench markers of README.md. Ratios are always
 against a baseline measured in the same run (wrench_bench.py, codesign_bench.py,
 first_call.py, sweep_bench.py document each one). Targets are stated beside the measured
-values; they are never asserted by the tests. ``--only sweep`` reruns the sweep section
-alone and merges it into the stored JSON (then rewrites the README block from it).
+values; they are never asserted by the tests. ``--only sweep|codesign|first_call`` reruns
+one section alone and merges it into the stored JSON (then rewrites the README block).
 """
 
 from __future__ import annotations
@@ -99,14 +99,24 @@ def run(args) -> dict:
     return result
 
 
-def merge_sweep(args, path: Path) -> dict:
-    """The stored result of ``path`` with its sweep section (and targets) measured anew."""
+def merge_section(args, path: Path) -> dict:
+    """The stored result of ``path`` with one section (and the targets) measured anew."""
     if not path.exists():
-        raise SystemExit(f"--only sweep merges into {path}, which does not exist: run all first")
+        raise SystemExit(f"--only merges into {path}, which does not exist: run all first")
     result = json.loads(path.read_text())
-    print("[bench] DUAL-V design sweep vs Python loops", flush=True)
     result["targets"] = TARGETS
-    result["sweep"] = sweep_section(args.sweep_designs, args.sweep_budget_mib)
+    if args.only == "sweep":
+        print("[bench] DUAL-V design sweep vs Python loops", flush=True)
+        result["sweep"] = sweep_section(args.sweep_designs, args.sweep_budget_mib)
+    elif args.only == "codesign":
+        print("[bench] co-design vs SciPy SLSQP", flush=True)
+        result["codesign"] = codesign_bench.bench_all()
+    else:
+        print("[bench] first calls in fresh processes", flush=True)
+        result["first_call"] = {
+            name: {"checks_on": first_calls(name, True), "checks_off": first_calls(name, False)}
+            for name in MOVES
+        }
     return result
 
 
@@ -121,10 +131,12 @@ def main():
     parser.add_argument("--readme", type=Path, default=HERE.parent / "README.md")
     parser.add_argument("--sweep-designs", type=int, default=500)
     parser.add_argument("--sweep-budget-mib", type=float, default=64.0)
-    parser.add_argument("--only", choices=["sweep"], help="rerun one section, merge it")
+    parser.add_argument(
+        "--only", choices=["sweep", "codesign", "first_call"], help="rerun one section, merge it"
+    )
     args = parser.parse_args()
     path = args.out / f"bench_{jax.default_backend()}.json"
-    result = merge_sweep(args, path) if args.only == "sweep" else run(args)
+    result = merge_section(args, path) if args.only else run(args)
     text = json.dumps(result, indent=2)
     atomic_write_text(path, text + "\n")
     print(text)

@@ -110,7 +110,7 @@ def bench_robot(name: str, count: int, loop_count: int, mjx_count: int, chunk: i
         return jaxbal.shaking_wrench(robot, q, qd, qdd)
 
     def before(q, qd, qdd):
-        return _shaking_wrench(robot, q, qd, qdd, None)
+        return _shaking_wrench(robot, q, qd, qdd, None, replay=False)
 
     fn = chunked(generic, chunk)
     compile_seconds = first_call(fn, *(a[:chunk] for a in states))

@@ -297,16 +297,23 @@ def test_compiled_codesign_has_no_callbacks(motion_2r):
     """The one compiled program of the default co-design carries no host callbacks (no
     runtime-error checks), so JAX's persistent compilation cache can store it: a second
     Python process starts warm."""
+    import equinox as eqx
+
     from jaxbal._src import design_loss as design
 
     arm = _arm_2r()
-    params = {"counter_mass": jnp.ones(2)}
     problem = design._Problem(
         free=("counter_mass",), two_sided=(False,), terms=("rms_force",), constrained=(),
         lower=(jnp.zeros(2),), upper=(jnp.zeros(2),), weights=jnp.ones(1),
         scales=jnp.ones(1), bounds=jnp.zeros(0), bound_scales=jnp.zeros(0),
         penalty=jnp.asarray(1.0),
     )  # fmt: skip
-    text = design._loss_grad.lower(params, arm, motion_2r, problem, np.asarray(False)).as_text()
+    layout = (("counter_mass", (2,)),)
+    dynamic, static = eqx.partition((arm, motion_2r, problem), eqx.is_array)
+    leaves, treedef = jax.tree_util.tree_flatten(dynamic)
+    lowered = design._loss_grad_flat.lower(
+        layout, design._Structure((treedef, static)), jnp.ones(2), leaves, np.asarray(False)
+    )
+    text = lowered.as_text()
     assert "callback" not in text.lower()
     assert "sine" in text  # the program does contain the dynamics

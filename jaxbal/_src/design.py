@@ -64,13 +64,14 @@ from jaxbal._src.design_loss import (
     _combine_numpy,
     _everything,
     _floor,
-    _loss_grad,
     _Problem,
     _raise_invalid_start,
     _to_design,
     _to_params,
+    _unflatten,
     _values,
     design_loss,
+    loss_grad_function,
 )
 from jaxbal._src.lbfgs import lbfgs
 from jaxbal._src.metrics import (
@@ -187,24 +188,16 @@ def _bounds(robot, free, lower, upper):
 def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol):
     """:func:`codesign` with the default optimiser: the host-driven L-BFGS of
     :mod:`jaxbal._src.lbfgs` around one compiled program (:func:`_loss_grad`)."""
-    names = problem.free
     params = _to_params(x0, problem)
-    shapes = [np.shape(params[name]) for name in names]
-    sizes = [int(np.prod(shape, dtype=int)) for shape in shapes]
-
-    def unravel(x):
-        parts = np.split(np.asarray(x, dtype=float), np.cumsum(sizes)[:-1])
-        return {n: p.reshape(sh) for n, p, sh in zip(names, parts, shapes, strict=True)}
-
-    def ravel(tree):
-        return np.concatenate([np.ravel(np.asarray(tree[n], dtype=float)) for n in names])
-
+    layout = tuple((name, tuple(np.shape(params[name]))) for name in problem.free)
+    x_start = np.concatenate([np.ravel(np.asarray(params[n], dtype=float)) for n in problem.free])
     everything = _everything(problem)
     labels = [metric_name(m) for m in everything]
     n = len(problem.terms)
     where = np.asarray([everything.index(m) for m in problem.constrained], dtype=int)
     # the starting design as given: its metric values set the scales (module doc)
-    _, _, before, floors, faulty = _loss_grad(params, robot, motion, problem, np.asarray(True))
+    loss_grad = loss_grad_function(robot, motion, problem, layout)
+    _, _, before, floors, faulty = loss_grad(x_start, np.asarray(True))
     before, floors = np.asarray(before), np.asarray(floors)
     if bool(faulty) or not np.all(np.isfinite(before)):
         _raise_invalid_start(robot, motion, labels, before)
@@ -215,14 +208,15 @@ def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol):
         problem,
         (jnp.asarray(scales), jnp.asarray(bound_scales)),
     )
+    loss_grad = loss_grad_function(robot, motion, problem, layout)
     at_start = np.asarray(False)
 
     def evaluate(x):
-        loss, grad, values, _, _ = _loss_grad(unravel(x), robot, motion, problem, at_start)
-        return float(loss), ravel(grad), values
+        loss, grad, values, _, _ = loss_grad(x, at_start)
+        return float(loss), np.asarray(grad), values
 
-    result = lbfgs(evaluate, ravel(params), max_steps=max_steps, gtol=gtol)
-    optimised, optimised_design = _designed(robot, unravel(result.x), problem)
+    result = lbfgs(evaluate, x_start, max_steps=max_steps, gtol=gtol)
+    optimised, optimised_design = _designed(robot, _unflatten(result.x, layout), problem)
     after = np.asarray(result.aux)
     bounds = np.asarray(problem.bounds)
     excess = after[where] - bounds

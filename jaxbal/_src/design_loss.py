@@ -3,7 +3,7 @@
 The loss is a function of the unconstrained parameters ``r`` of the bounded design
 variables, the robot, the motion and a :class:`_Problem` (names, metric choices and
 bound kinds static; every number an array leaf), so that the compiled code is reused
-for any robot of the same structure. :func:`_loss_grad` is the program the default
+for any robot of the same structure. :func:`_loss_grad_flat` is the program the default
 co-design calls once per L-BFGS iteration.
 
 References:
@@ -13,6 +13,7 @@ References:
 from __future__ import annotations
 
 from collections.abc import Mapping
+from functools import partial
 from typing import Any
 
 import equinox as eqx
@@ -114,13 +115,12 @@ def _loss_and_values(params, robot: Robot, motion: Motion, problem: _Problem, at
     return _combine(values[:n], constrained, problem), values
 
 
-@eqx.filter_jit
 def _loss_grad(params, robot: Robot, motion: Motion, problem: _Problem, at_start):
-    """The one compiled program of the default co-design: loss, gradient and metric
-    values, the metrics' scale floors, and whether the given robot or motion is
-    invalid (a mask, raised by the caller: no runtime-error callbacks, so that the
-    program is stored in the persistent compilation cache). Runtime checks are off
-    while it is traced (line-search trials may be non-finite)."""
+    """Loss, gradient and metric values, the metrics' scale floors, and whether the given
+    robot or motion is invalid (a mask, raised by the caller: no runtime-error
+    callbacks, so that the compiled program is stored in the persistent compilation
+    cache). Runtime checks are off while it is traced (line-search trials may be
+    non-finite)."""
     with runtime_checks(False):
         (loss, values), grad = jax.value_and_grad(_loss_and_values, has_aux=True)(
             params, robot, motion, problem, at_start
@@ -128,6 +128,62 @@ def _loss_grad(params, robot: Robot, motion: Motion, problem: _Problem, at_start
     floors = jnp.stack([_floor(robot, motion, m) for m in _everything(problem)])
     faulty = robot_faulty(robot) | ~jnp.all(jnp.isfinite(jnp.stack(list(motion))))
     return loss, grad, values, floors, faulty
+
+
+def _unflatten(x, layout) -> dict[str, Array]:
+    """The parameter dict of the flat ``x`` (``layout``: static ``(name, shape)`` pairs)."""
+    params, start = {}, 0
+    for name, shape in layout:
+        size = int(np.prod(shape, dtype=int))
+        params[name] = x[start : start + size].reshape(shape)
+        start += size
+    return params
+
+
+@partial(jax.jit, static_argnums=(0, 1))
+def _loss_grad_flat(layout, structure, x, leaves, at_start):
+    """:func:`_loss_grad` of the flat parameters ``x``, with the robot, motion and
+    problem as a flat list of array leaves (``structure``: their tree and static part):
+    the compiled program the default co-design calls once per L-BFGS iteration, with a
+    dispatch of microseconds (no pytree filtering per call)."""
+    treedef, static = structure
+    robot, motion, problem = eqx.combine(jax.tree_util.tree_unflatten(treedef, leaves), static)
+    loss, grad, values, floors, faulty = _loss_grad(
+        _unflatten(x, layout), robot, motion, problem, at_start
+    )
+    grad = jnp.concatenate([jnp.ravel(grad[name]) for name, _ in layout])
+    return loss, grad, values, floors, faulty
+
+
+class _Structure:
+    """A static argument of ``jit`` whose hash is computed once (hashing a robot's
+    static part field by field cost ~0.1 ms per call of the L-BFGS loop)."""
+
+    def __init__(self, value):
+        self.value = value
+        self._hash = hash(value)
+
+    def __hash__(self):
+        return self._hash
+
+    def __eq__(self, other):
+        return self is other or (isinstance(other, _Structure) and self.value == other.value)
+
+    def __iter__(self):
+        return iter(self.value)
+
+
+def loss_grad_function(robot: Robot, motion: Motion, problem: _Problem, layout):
+    """``(x, at_start) -> (loss, grad (n,), values, floors, faulty)`` (see
+    :func:`_loss_grad_flat`); compiled once per structure."""
+    dynamic, static = eqx.partition((robot, motion, problem), eqx.is_array)
+    leaves, treedef = jax.tree_util.tree_flatten(dynamic)
+    structure = _Structure((treedef, static))
+
+    def call(x, at_start):
+        return _loss_grad_flat(layout, structure, x, leaves, at_start)
+
+    return call
 
 
 def _combine_numpy(values, constrained, problem: _Problem) -> float:

@@ -267,9 +267,12 @@ def shaking_wrench(
     return _shaking_wrench(robot, q, qd, qdd, gravity)
 
 
-def _shaking_wrench(robot: Robot, q, qd, qdd, gravity):
+def _shaking_wrench(robot: Robot, q, qd, qdd, gravity, replay: bool = True):
+    """The checked wrench; ``replay=False`` evaluates the physics as written, without
+    the straight-line replay (the benchmark's "before")."""
     q, qd, qdd = checked_state(robot, q, qd, qdd)
-    force, moment = _straight_physics(robot, q, qd, qdd, gravity)
+    physics = _straight_physics if replay else _physics
+    force, moment = physics(robot, q, qd, qdd, gravity)
     # Both outputs guarded: a check on the force alone was dropped from compiled code
     # that uses only the moment (peak_moment of a NaN-inertia robot was finite).
     force, moment = checked_parameters(robot, checked_bodies(robot, (force, moment)))

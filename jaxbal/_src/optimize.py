@@ -1,10 +1,14 @@
 """Gradient-based optimisation of design and trajectory parameters with optax.
 
-One small driver shared by every co-design problem (counter-masses, trajectory
-parameters, payloads): minimise a scalar ``loss(params)`` over any pytree ``params``
-with optax's L-BFGS (zoom line search) -- quasi-Newton, so smooth least-squares design
-problems converge to ~1e-10 relative in tens of steps -- or with any optax first-order
-optimiser (Adam for non-smooth objectives such as a maximum over time).
+A small driver for design and trajectory problems (the joint co-design, the Pareto
+fronts, a user's own loss): minimise a scalar ``loss(params)`` over any pytree
+``params`` with optax's L-BFGS (zoom line search) -- quasi-Newton, so smooth
+least-squares design problems converge to ~1e-10 relative in tens of steps -- or with
+any optax first-order optimiser (Adam for non-smooth objectives such as a maximum over
+time), as one compiled ``lax.while_loop`` (nothing returns to Python between steps).
+:func:`jaxbal.design.codesign` uses it when given ``optimizer=``; by default it drives a
+compact L-BFGS from the host around one compiled value-and-gradient
+(:mod:`jaxbal._src.lbfgs`), which compiles several times faster.
 
 References:
     Liu & Nocedal (1989), L-BFGS; optax.lbfgs.
