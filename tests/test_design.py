@@ -317,3 +317,23 @@ def test_compiled_codesign_has_no_callbacks(motion_2r):
     text = lowered.as_text()
     assert "callback" not in text.lower()
     assert "sine" in text  # the program does contain the dynamics
+
+
+def test_start_at_the_lower_bounds_leaves_them():
+    """DUAL-V without counter-masses (every mass and distance at its lower bound, where
+    the bound map's gradient vanishes): the default co-design leaves the bounds (the
+    line search doubles too-short steps) and reaches the optimum of the compiled optax
+    L-BFGS (README example: RMS force 151 N -> 45 N for +9.1 kg), 1e-6 relative."""
+    import optax
+
+    robot = jaxbal.robots.dual_v(counter_masses=False)
+    motion = _line(robot, [0.0, -0.05, 0.0], [0.05, 0.05, 0.0], 0.1)
+    kwargs = {"upper": {"counter_distance": 0.1}}
+    objective = {"rms_force": 1.0, "added_mass": 0.01}
+    ours = codesign(robot, motion, objective, **kwargs)
+    reference = codesign(robot, motion, objective, optimizer=optax.lbfgs(), **kwargs)
+    assert bool(ours.converged)
+    for name in ("rms_force", "added_mass"):
+        np.testing.assert_allclose(ours.metrics[name][1], reference.metrics[name][1], rtol=1e-6)
+    before, after = ours.metrics["rms_force"]
+    assert float(after) < 0.5 * float(before)

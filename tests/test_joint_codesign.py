@@ -127,7 +127,9 @@ def test_front_end_points_and_dominance(problem):
     front = pareto_front(arm, move, THETA, metrics, [0.0, 0.3, 1.0], **options)
     assert bool(front.efficient.all())
     assert bool(front.feasible.all())
-    single = joint_codesign(arm, move, THETA, "rms_force", **options)
+    # the single-objective solve crawls along the valley: 600 steps left it 3e-4 above
+    # the front's end point (measured), 1500 agree to 1e-12
+    single = joint_codesign(arm, move, THETA, "rms_force", **{**options, "max_steps": 1500})
     # reference: an independent single-objective solve (end point w = 0)
     np.testing.assert_allclose(front.values[0, 0], single.metrics["rms_force"][1], rtol=1e-6)
     # w = 1: the added mass alone is minimised -> zero counter-mass (reference: 0, within

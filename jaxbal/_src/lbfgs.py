@@ -13,11 +13,14 @@ step for the problems of a co-design: a few to a few hundred variables).
 Each iteration evaluates value and gradient once, at a trial point:
 
 - the start: first direction ``−g`` (at most a unit step);
-- a trial ``x + α d`` of a backtracking line search, accepted when finite and either
-  the Armijo condition ``f(α) ≤ f + c₁ α g·d`` holds or, where differences of ``f``
-  are at rounding level, the approximate Wolfe condition of Hager & Zhang
-  (``f(α) ≤ f + ε|f|`` and ``g(α)·d ≤ (2δ − 1) g·d``). Rejected: ``α`` shrinks to the
-  minimiser of the interpolating quadratic, kept in ``[0.1 α, 0.5 α]``. An accepted
+- a trial ``x + α d`` of the line search, from ``α = 1``: sufficient decrease when
+  finite and either the Armijo condition ``f(α) ≤ f + c₁ α g·d`` holds or, where
+  differences of ``f`` are at rounding level, the approximate Wolfe condition of Hager
+  & Zhang (``f(α) ≤ f + ε|f|`` and ``g(α)·d ≤ (2δ − 1) g·d``). A step with sufficient
+  decrease whose slope is still steep (``g(α)·d < c₂ g·d``) is doubled while the
+  decrease holds (a start where the bound map's gradient is tiny is left in a few
+  steps); one without shrinks to the minimiser of the interpolating quadratic, kept in
+  ``[0.1 α, 0.5 α]``. An accepted
   step stores the pair ``(s, y)`` when ``s·y > 0`` (curvature), and the next direction
   is the two-loop recursion with ``H₀ = (s·y / y·y) I``. A line search that fails with
   a memory restarts once from steepest descent; without one the run stops.
@@ -44,6 +47,10 @@ APPROXIMATE_WOLFE = 0.1
 ROUNDING_RTOL = 1e-12
 #: Backtracking trials of one line search before it fails.
 MAX_BACKTRACKS = 40
+#: Curvature constant ``c₂``: a step whose slope is still below ``c₂ g·d`` is doubled.
+CURVATURE = 0.9
+#: Doublings of a too-short step in one line search.
+MAX_EXPANSIONS = 30
 
 
 class Result(NamedTuple):
@@ -93,6 +100,42 @@ def _finite(f: float, g: np.ndarray) -> bool:
     return bool(np.isfinite(f) and np.all(np.isfinite(g)))
 
 
+def _line_search(fun, x, f, g, d, budget):
+    """``((x + α d, f, g, aux) or None, evaluations)``: the first ``α = 1`` trial that
+    decreases ``f`` enough (Armijo, or approximate Wolfe at rounding level) and is not
+    too short (``g(α)·d ≥ c₂ g·d``, the curvature condition); a short step is doubled
+    while it keeps decreasing ``f`` (so a start near a stationary point of the bound
+    map, where the gradient is tiny, is left in a few steps); a failed trial shrinks
+    ``α`` by the interpolating quadratic, or returns the last good expanded step."""
+    slope = float(g @ d)
+    alpha, used, expansions, best = 1.0, 0, 0, None
+    scale = float(np.linalg.norm(d))
+    while used < min(budget, MAX_BACKTRACKS + MAX_EXPANSIONS):
+        trial = x + alpha * d
+        ft, gt, aux = fun(trial)
+        used += 1
+        finite = _finite(ft, gt)
+        armijo = finite and ft <= f + ARMIJO * alpha * slope
+        approximate = (
+            finite
+            and ft <= f + ROUNDING_RTOL * abs(f)
+            and float(gt @ d) <= (2.0 * APPROXIMATE_WOLFE - 1.0) * slope
+        )
+        if armijo or approximate:
+            if float(gt @ d) < CURVATURE * slope and expansions < MAX_EXPANSIONS:
+                best, alpha, expansions = (trial, ft, gt, aux), 2.0 * alpha, expansions + 1
+                continue
+            return (trial, ft, gt, aux), used
+        if best is not None:  # an expansion went too far: keep the last good step
+            return best, used
+        if alpha * scale <= 1e-16 * (1.0 + float(np.linalg.norm(x))):
+            break
+        quadratic = -slope * alpha**2 / (2.0 * (ft - f - slope * alpha)) if finite else np.nan
+        shrunk = 0.5 * alpha
+        alpha = float(np.clip(quadratic, 0.1 * alpha, shrunk)) if np.isfinite(quadratic) else shrunk
+    return best, used
+
+
 def lbfgs(
     fun: Callable[[np.ndarray], tuple[float, np.ndarray, Any]],
     x0,
@@ -121,36 +164,16 @@ def lbfgs(
     converged = bool(np.linalg.norm(g) <= gtol)
     d = _steepest(g)
     while not converged and steps < max_steps and _finite(f, g):
-        slope, alpha, accepted = float(g @ d), 1.0, False
-        for _ in range(MAX_BACKTRACKS):
-            if evaluations >= (MAX_BACKTRACKS + 2) * max_steps:
-                break
-            trial = x + alpha * d
-            ft, gt, aux_t = fun(trial)
-            evaluations += 1
-            finite = _finite(ft, gt)
-            armijo = finite and ft <= f + ARMIJO * alpha * slope
-            approximate = (
-                finite
-                and ft <= f + ROUNDING_RTOL * abs(f)
-                and float(gt @ d) <= (2.0 * APPROXIMATE_WOLFE - 1.0) * slope
-            )
-            if armijo or approximate:
-                accepted = True
-                break
-            if alpha * float(np.linalg.norm(d)) <= 1e-16 * (1.0 + float(np.linalg.norm(x))):
-                break
-            quadratic = -slope * alpha**2 / (2.0 * (ft - f - slope * alpha)) if finite else np.nan
-            shrunk = 0.5 * alpha
-            alpha = (
-                float(np.clip(quadratic, 0.1 * alpha, shrunk)) if np.isfinite(quadratic) else shrunk
-            )
-        if not accepted:
-            if pairs:  # restart from steepest descent once
+        budget = (MAX_BACKTRACKS + 2) * max_steps - evaluations
+        found, used = _line_search(fun, x, f, g, d, budget)
+        evaluations += used
+        if found is None:
+            if pairs and evaluations < (MAX_BACKTRACKS + 2) * max_steps:  # restart
                 pairs.clear()
                 d = _steepest(g)
                 continue
             break
+        trial, ft, gt, aux_t = found
         s, y = trial - x, gt - g
         sy = float(s @ y)
         if sy > 1e-12 * float(np.linalg.norm(s)) * float(np.linalg.norm(y)):
