@@ -60,7 +60,6 @@ import numpy as np
 from jaxbal._src.design_loss import (
     SCALE_FLOOR,
     START_OFFSET,
-    _combine,
     _combine_numpy,
     _everything,
     _floor,
@@ -146,9 +145,6 @@ def _designed(robot: Robot, params, problem: _Problem):
     per structure)."""
     optimised = robot.with_design(_to_design(params, problem))
     return optimised, optimised.design()
-
-
-_combine_compiled = eqx.filter_jit(_combine)
 
 
 def _objective_terms(objective) -> tuple[tuple, tuple[float, ...]]:
@@ -372,7 +368,7 @@ def codesign(
     optimised, optimised_design = _designed(robot, solution.params, problem)
     after = np.asarray(_evaluate(optimised, motion, everything)[0])
     n = len(terms)
-    initial_value = _combine_compiled(before[:n], before[where], problem)
+    initial_value = _combine_numpy(before[:n], before[where], problem)
     names = [metric_name(m) for m in everything]
     constraint_values = {
         metric_name(m): (after[i], bounds[k])

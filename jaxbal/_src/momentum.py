@@ -64,10 +64,8 @@ def robot_faulty(robot: Robot):
     returns the mask, and the caller raises the named error eagerly."""
     _, _, bad_mass, bad_inertia = _body_faults(robot)
     faulty = jnp.any(bad_mass) | jnp.any(bad_inertia)
-    for _, x in _parameters(robot):
-        faulty = faulty | ~jnp.all(jnp.isfinite(x))
-    for name in getattr(type(robot), "nonnegative_parameters", ()):
-        faulty = faulty | jnp.any(jnp.asarray(getattr(robot, name)) < -ROUNDING)
+    for invalid in _parameter_faults(robot):
+        faulty = faulty | jnp.any(invalid)
     return faulty
 
 
@@ -93,6 +91,25 @@ def _parameters(robot: Robot) -> list[tuple[str, Array]]:
     return [(prefix + jax.tree_util.keystr(p), x) for p, x in flat if eqx.is_inexact_array(x)]
 
 
+def _signed_parameters(robot: Robot) -> list[tuple[str, Array]]:
+    """``(name, value)`` of the fields in the class's ``nonnegative_parameters``."""
+    prefix = type(robot).__name__ + "."
+    names = getattr(type(robot), "nonnegative_parameters", ())
+    return [(prefix + name, jnp.asarray(getattr(robot, name))) for name in names]
+
+
+def _parameter_faults(robot: Robot) -> tuple:
+    """Masks of :func:`checked_parameters`: a non-finite parameter ``(p,)``, and a
+    negative one ``(s,)`` when the class names ``nonnegative_parameters``."""
+    parameters, signed = _parameters(robot), _signed_parameters(robot)
+    faults = ()
+    if parameters:
+        faults += (jnp.stack([~jnp.all(jnp.isfinite(x)) for _, x in parameters]),)
+        if signed:
+            faults += (jnp.stack([jnp.any(x < -ROUNDING) for _, x in signed]),)
+    return faults
+
+
 def checked_parameters(robot: Robot, value):
     """``value``, guarded by every floating-point parameter of the robot being finite,
     and the fields in the class's ``nonnegative_parameters`` (lengths, masses,
@@ -105,12 +122,7 @@ def checked_parameters(robot: Robot, value):
     (``PlanarArm.lengths``) and their values; under ``jit`` a runtime error
     (:func:`jaxbal.set_runtime_checks`).
     """
-    parameters = _parameters(robot)
-    prefix = type(robot).__name__ + "."
-    signed = [
-        (prefix + name, jnp.asarray(getattr(robot, name)))
-        for name in getattr(type(robot), "nonnegative_parameters", ())
-    ]
+    parameters, signed = _parameters(robot), _signed_parameters(robot)
     if not parameters:
         return value
     message = "robot parameters must be finite"
@@ -123,11 +135,8 @@ def checked_parameters(robot: Robot, value):
         if bad:
             raise ValueError(f"{negative}: {bad}")
         return value
-    invalid = jnp.stack([~jnp.all(jnp.isfinite(x)) for _, x in parameters])
-    value = guard(value, invalid, message, invalid)
-    if signed:
-        invalid = jnp.stack([jnp.any(x < -ROUNDING) for _, x in signed])
-        value = guard(value, invalid, negative, invalid)
+    for invalid, text in zip(_parameter_faults(robot), (message, negative), strict=False):
+        value = guard(value, invalid, text, invalid)
     return value
 
 
