@@ -97,9 +97,18 @@ def _everything(problem: _Problem) -> tuple:
     return problem.terms + tuple(m for m in problem.constrained if m not in problem.terms)
 
 
+def _loss_of(candidate: Robot, motion: Motion, problem: _Problem):
+    """``(loss, metric values (k,))`` of a robot: objective terms, then constraints."""
+    everything = _everything(problem)
+    values = _values(candidate, motion, everything)
+    where = jnp.asarray([everything.index(m) for m in problem.constrained], dtype=int)
+    constrained = values[where] if problem.constrained else None
+    return _combine(values[: len(problem.terms)], constrained, problem), values
+
+
 def _loss_and_values(params, robot: Robot, motion: Motion, problem: _Problem, at_start):
-    """``(loss, metric values (k,))`` at the parameters ``r``; with ``at_start`` (a
-    traced bool) the metrics of ``robot`` as given (the scales are then placeholders)."""
+    """:func:`_loss_of` at the parameters ``r``; with ``at_start`` (a traced bool) of
+    ``robot`` as given (the scales are then placeholders)."""
     designed = robot.with_design(_to_design(params, problem))
     dynamic, static = eqx.partition(robot, eqx.is_array)
     chosen = jax.tree_util.tree_map(
@@ -107,12 +116,7 @@ def _loss_and_values(params, robot: Robot, motion: Motion, problem: _Problem, at
         dynamic,
         eqx.filter(designed, eqx.is_array),
     )
-    everything = _everything(problem)
-    values = _values(eqx.combine(chosen, static), motion, everything)
-    n = len(problem.terms)
-    where = jnp.asarray([everything.index(m) for m in problem.constrained], dtype=int)
-    constrained = values[where] if problem.constrained else None
-    return _combine(values[:n], constrained, problem), values
+    return _loss_of(eqx.combine(chosen, static), motion, problem)
 
 
 def _loss_grad(params, robot: Robot, motion: Motion, problem: _Problem, at_start):
@@ -211,10 +215,7 @@ def _raise_invalid_start(robot: Robot, motion: Motion, names, before) -> None:
 def design_loss(params: dict[str, Array], robot: Robot, motion: Motion, problem: _Problem):
     """The co-design loss (module doc) at the parameters ``r`` (module level: the
     compiled L-BFGS loop of :func:`jaxbal.minimize` is cached on its identity)."""
-    candidate = robot.with_design(_to_design(params, problem))
-    values = _values(candidate, motion, problem.terms)
-    constrained = _values(candidate, motion, problem.constrained) if problem.constrained else None
-    return _combine(values, constrained, problem)
+    return _loss_of(robot.with_design(_to_design(params, problem)), motion, problem)[0]
 
 
 def _floor(robot: Robot, motion: Motion, metric) -> Scalar:
