@@ -31,6 +31,7 @@ PUBLIC_MODULES = (
     "jaxbal.profiles",
     "jaxbal.planning",
     "jaxbal.design",
+    "jaxbal.balancing",
     "jaxbal.sensitivity",
     "jaxbal.mujoco",
     "jaxbal.report",

@@ -1,0 +1,162 @@
+"""Balancing conditions from the linear-in-parameters wrench (jaxbal.balancing).
+
+References: :func:`jaxbal.shaking_wrench` (an independent evaluation: the derivative of
+the bodies' momentum, against Newton–Euler on the frames here; 1e-12 of the wrench's
+gross scale), the classical complete force-balancing conditions of a planar 2R arm
+(Berkof & Lowen 1969: the first moment of everything a joint carries cancels about
+it; exact), and the wrench of a robot designed to meet the conditions along another,
+unrelated motion (zero to 1e-10 of the unbalanced arm's).
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from test_contract import CASES, _motion
+
+import jaxbal
+from jaxbal import balancing
+from jaxbal.design import Motion, motion_samples
+
+L1, L2, R1, R2 = 0.4, 0.3, 0.5, 0.4
+
+
+def _arm(counter_masses=(0.0, 0.0)):
+    return jaxbal.robots.PlanarArm(
+        lengths=np.array([L1, L2]),
+        com_ratios=np.array([R1, R2]),
+        masses=np.array([2.0, 1.0]),
+        inertias=np.array([0.03, 0.01]),
+        payload=0.5,
+        counter_masses=np.asarray(counter_masses, dtype=float),
+        counter_distances=np.array([0.1, 0.1]),
+    )
+
+
+def _sines(frequencies, phases, samples=400):
+    """A generic joint motion: each joint a sine of its own frequency [Hz]."""
+    t = jnp.linspace(0.0, 1.0, samples)[:, None]
+    omega, phase = 2 * jnp.pi * jnp.asarray(frequencies), jnp.asarray(phases)
+    q = jnp.sin(omega * t + phase)
+    return Motion(q, omega * jnp.cos(omega * t + phase), -(omega**2) * q)
+
+
+def _gross(y, pi):
+    """Largest ``Σ_k |Y_k π_k|`` over samples and components (rounding scale)."""
+    return float(np.max(np.abs(np.asarray(y)) @ np.abs(pi)))
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_linear_wrench_equals_shaking_wrench(name):
+    """Newton–Euler on the frames (Y π) equals the momentum derivative of
+    shaking_wrench on every robot, closed chains included."""
+    robot, path = _motion(name)
+    motion = motion_samples(robot, path, jnp.linspace(0.0, 0.2, 50))
+    linear = balancing.linear_wrench(robot, motion)
+    pi = np.ravel(np.asarray(balancing.lumped_parameters(robot)))
+    force, moment = jax.vmap(lambda *s: jaxbal.shaking_wrench(robot, *s))(*motion)
+    for y, direct in ((linear.force, force), (linear.moment, moment)):
+        np.testing.assert_allclose(np.asarray(y) @ pi, direct, rtol=0, atol=1e-12 * _gross(y, pi))
+    assert len(linear.names) == pi.size == linear.force.shape[-1]
+
+
+def test_planar_arm_conditions_are_berkof_lowen():
+    """Along a generic motion the 2R arm's force conditions are the classical ones, in
+    reduced row-echelon form exactly: per joint, the first moment of everything it
+    carries (link, counterweight; the payload at the tip) cancels about it."""
+    arm = _arm()
+    conditions = balancing.balancing_conditions(arm, _sines([2.0, 3.3], [0.1, 0.7]))
+    names = list(conditions.names)
+    expected = np.zeros((4, len(names)))
+    rows = [
+        {"link1.h_x": 1, "counterweight1.h_x": 1, "link2.m": L1, "counterweight2.m": L1,
+         "payload.m": L1},
+        {"link1.h_y": 1, "counterweight1.h_y": 1},
+        {"link2.h_x": 1, "counterweight2.h_x": 1, "payload.h_x": 1, "payload.m": L2},
+        {"link2.h_y": 1, "counterweight2.h_y": 1, "payload.h_y": 1},
+    ]  # fmt: skip
+    for row, coefficients in zip(expected, rows, strict=True):
+        for name, value in coefficients.items():
+            row[names.index(name)] = value
+    assert conditions.rank == 4
+    np.testing.assert_allclose(conditions.matrix, expected, rtol=0, atol=1e-12)
+    assert conditions.equations()[1] == "link1.h_y + counterweight1.h_y = 0"
+
+
+def test_meeting_the_conditions_balances_every_motion():
+    """Counterweights solved from the conditions (found along one motion) cancel the
+    shaking force along an unrelated motion, to 1e-10 of the unbalanced arm's."""
+    conditions = balancing.balancing_conditions(_arm(), _sines([2.0, 3.3], [0.1, 0.7]))
+    m2, mp, d = 1.0, 0.5, 0.1
+    cw2 = (m2 * R2 * L2 + mp * L2) / d
+    cw1 = (2.0 * R1 * L1 + L1 * (m2 + cw2 + mp)) / d
+    balanced = _arm((cw1, cw2))
+    np.testing.assert_allclose(conditions.residuals(balanced), 0.0, atol=1e-12)
+    assert np.max(np.abs(conditions.residuals(_arm()))) > 0.1
+    other = _sines([1.1, 4.7], [2.0, 0.3], samples=300)
+
+    def forces(robot):
+        return jax.vmap(lambda *s: jaxbal.shaking_wrench(robot, *s)[0])(*other)
+
+    unbalanced = float(jnp.max(jnp.abs(forces(_arm((cw1 * 0.5, cw2 * 0.5))))))
+    assert float(jnp.max(jnp.abs(forces(balanced)))) <= 1e-10 * unbalanced
+
+
+def test_serial_arm_moment_needs_more_than_counter_masses():
+    """The 2R arm's moment condition led by link1.J_zz adds l1² times every mass the
+    elbow carries: all coefficients positive, so no counter-mass design of physical
+    (positive) masses and inertias cancels the shaking moment (the classical reason
+    for counter-rotations)."""
+    conditions = balancing.balancing_conditions(_arm(), _sines([2.0, 3.3], [0.1, 0.7]), "moment")
+    names = list(conditions.names)
+    (index,) = np.flatnonzero(conditions.matrix[:, names.index("link1.J_zz")] == 1.0)
+    row = conditions.matrix[index]
+    for name in ("link2.m", "counterweight2.m", "payload.m"):
+        np.testing.assert_allclose(row[names.index(name)], L1**2, rtol=1e-12)
+    assert np.all(row >= 0.0)
+    assert conditions.residuals(_arm())[index] > 0
+
+
+def test_regressor_vmap_equals_loop_and_ignores_masses():
+    arm, motion = _arm(), _sines([2.0, 3.3], [0.1, 0.7], samples=6)
+    batched = jax.vmap(lambda *s: balancing.wrench_regressor(arm, *s))(*motion)
+    heavier = eqx.tree_at(lambda r: r.masses, arm, arm.masses * 3.0)
+    for k in range(6):
+        state = [x[k] for x in motion]
+        for a, b, c in zip(
+            batched,
+            balancing.wrench_regressor(arm, *state),
+            jax.jit(balancing.wrench_regressor)(heavier, *state),
+            strict=True,
+        ):
+            np.testing.assert_allclose(a[k], b, rtol=1e-14, atol=1e-12)
+            np.testing.assert_allclose(c, b, rtol=1e-14, atol=1e-12)
+
+
+def test_regressor_gradient_in_a_length_is_finite_and_matches_fd():
+    motion = _sines([2.0, 3.3], [0.1, 0.7], samples=3)
+    state = [x[1] for x in motion]
+
+    def first_force(length):
+        arm = eqx.tree_at(lambda r: r.lengths, _arm(), jnp.asarray([length, L2]))
+        pi = jnp.ravel(balancing.lumped_parameters(_arm()))
+        return (balancing.wrench_regressor(arm, *state)[0] @ pi)[0]
+
+    grad = jax.grad(first_force)(L1)
+    step = 1e-6
+    fd = (first_force(L1 + step) - first_force(L1 - step)) / (2 * step)
+    assert np.isfinite(grad)
+    np.testing.assert_allclose(grad, fd, rtol=1e-6)
+
+
+def test_bad_input_raises():
+    arm, motion = _arm(), _sines([2.0, 3.3], [0.1, 0.7], samples=5)
+    with pytest.raises(ValueError, match="part must be"):
+        balancing.balancing_conditions(arm, motion, "torque")
+    with pytest.raises(ValueError, match="rtol must lie"):
+        balancing.balancing_conditions(arm, motion, rtol=0.0)
+    with pytest.raises(ValueError, match="non-finite state"):
+        balancing.linear_wrench(arm, Motion(motion.q.at[2, 0].set(jnp.nan), *motion[1:]))
+    with pytest.raises(ValueError, match="q must have shape"):
+        balancing.wrench_regressor(arm, jnp.zeros(3), jnp.zeros(2), jnp.zeros(2))
