@@ -195,7 +195,8 @@ def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol):
     loss_grad = loss_grad_function(robot, motion, problem, layout)
     _, _, before, floors, faulty = loss_grad(x_start, np.asarray(True))
     before, floors = np.asarray(before), np.asarray(floors)
-    if bool(faulty) or not np.all(np.isfinite(before)):
+    finite_motion = all(np.all(np.isfinite(np.asarray(part))) for part in motion)
+    if bool(faulty) or not finite_motion or not np.all(np.isfinite(before)):
         _raise_invalid_start(robot, motion, labels, before)
     scales = np.maximum(np.abs(before[:n]), floors[:n])
     bound_scales = np.maximum(np.abs(np.asarray(problem.bounds)), floors[where])

@@ -22,7 +22,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.metrics import ADDED_MASS_VARIABLES, Motion, base_inertia, resolve_metric
-from jaxbal._src.momentum import checked_bodies, checked_parameters, robot_faulty, total_mass
+from jaxbal._src.momentum import (
+    checked_bodies,
+    checked_parameters,
+    replayed,
+    robot_faulty,
+    total_mass,
+)
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
 from jaxbal._src.validation import runtime_checks
@@ -121,17 +127,18 @@ def _loss_and_values(params, robot: Robot, motion: Motion, problem: _Problem, at
 
 def _loss_grad(params, robot: Robot, motion: Motion, problem: _Problem, at_start):
     """Loss, gradient and metric values, the metrics' scale floors, and whether the given
-    robot or motion is invalid (a mask, raised by the caller: no runtime-error
-    callbacks, so that the compiled program is stored in the persistent compilation
-    cache). Runtime checks are off while it is traced (line-search trials may be
-    non-finite)."""
-    with runtime_checks(False):
+    robot is invalid (a mask, raised by the caller, who checks the motion on the host:
+    no runtime-error callbacks, so that the compiled program is stored in the persistent
+    compilation cache). Runtime checks are off while it is traced (line-search trials
+    may be non-finite)."""
+    # no straight-line replay: this program runs a few hundred times at most, and the
+    # replay's trace and compile time outweigh its faster evaluations (momentum.replayed)
+    with runtime_checks(False), replayed(False):
         (loss, values), grad = jax.value_and_grad(_loss_and_values, has_aux=True)(
             params, robot, motion, problem, at_start
         )
     floors = jnp.stack([_floor(robot, motion, m) for m in _everything(problem)])
-    faulty = robot_faulty(robot) | ~jnp.all(jnp.isfinite(jnp.stack(list(motion))))
-    return loss, grad, values, floors, faulty
+    return loss, grad, values, floors, robot_faulty(robot)
 
 
 def _unflatten(x, layout) -> dict[str, Array]:

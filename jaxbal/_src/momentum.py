@@ -17,6 +17,8 @@ References:
 
 from __future__ import annotations
 
+import contextlib
+
 import equinox as eqx
 import jax
 import jax.numpy as jnp
@@ -276,11 +278,36 @@ def shaking_wrench(
     return _shaking_wrench(robot, q, qd, qdd, gravity)
 
 
-def _shaking_wrench(robot: Robot, q, qd, qdd, gravity, replay: bool = True):
+#: whether traced evaluations of the wrench are replayed as straight-line code
+#: (:func:`replayed`).
+_REPLAY = [True]
+
+
+@contextlib.contextmanager
+def replayed(enabled: bool):
+    """Context manager: whether :func:`shaking_wrench` traced inside the block is
+    replayed as straight-line code (:mod:`jaxbal._src.straight_line`; default on).
+
+    The replay makes the compiled wrench about as fast as a hand-written closed form
+    (sweeps, throughput), but generating it adds trace time and its many scalar
+    operations add compile time. A program that runs a few hundred times, such as the
+    co-design's value and gradient, starts sooner without it (measured on the 2-core
+    CPU: the first DUAL-V co-design 1.47 s → 1.10 s, each later evaluation ~1.3×
+    slower)."""
+    before = _REPLAY[0]
+    _REPLAY[0] = bool(enabled)
+    try:
+        yield
+    finally:
+        _REPLAY[0] = before
+
+
+def _shaking_wrench(robot: Robot, q, qd, qdd, gravity, replay: bool | None = None):
     """The checked wrench; ``replay=False`` evaluates the physics as written, without
-    the straight-line replay (the benchmark's "before")."""
+    the straight-line replay (the benchmark's "before"); ``None``: as set by
+    :func:`replayed`."""
     q, qd, qdd = checked_state(robot, q, qd, qdd)
-    physics = _straight_physics if replay else _physics
+    physics = _straight_physics if (_REPLAY[0] if replay is None else replay) else _physics
     force, moment = physics(robot, q, qd, qdd, gravity)
     # Both outputs guarded: a check on the force alone was dropped from compiled code
     # that uses only the moment (peak_moment of a NaN-inertia robot was finite).
