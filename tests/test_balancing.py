@@ -160,3 +160,62 @@ def test_bad_input_raises():
         balancing.linear_wrench(arm, Motion(motion.q.at[2, 0].set(jnp.nan), *motion[1:]))
     with pytest.raises(ValueError, match="q must have shape"):
         balancing.wrench_regressor(arm, jnp.zeros(3), jnp.zeros(2), jnp.zeros(2))
+
+
+def test_scara_conditions_are_arakelian_briot():
+    """Along a generic motion of all four joints the SCARA's force conditions are the
+    paper's eqs (1)-(3) and the vertical counterweight's (v), met by the closed-form
+    balanced SCARA (robots.scara_balancing.force_balanced) to rounding."""
+    from jaxbal.robots import scara_balancing
+
+    scara = jaxbal.robots.scara()
+    amplitudes = jnp.asarray([1.0, 1.0, 1.0, 0.05])
+    motion = _sines([1.0, 1.7, 2.9, 3.7], [0.1, 0.5, 0.9, 1.3])
+    motion = Motion(*(x * amplitudes for x in motion))
+    conditions = balancing.balancing_conditions(scara, motion)
+    assert conditions.rank == 7
+    assert (
+        "end_effector.m + payload.m + counter_mass3.m - vertical_counterweight.m = 0"
+        in conditions.equations()
+    )
+    balanced = scara_balancing.force_balanced(scara)
+    np.testing.assert_allclose(conditions.residuals(balanced), 0.0, atol=1e-12)
+    assert np.max(np.abs(conditions.residuals(scara))) > 0.1
+
+
+def _dual_v_motion(robot, rotation):
+    """A generic platform motion: x, y (and θ5 when ``rotation`` > 0) sines."""
+    t = jnp.linspace(0.0, 1.0, 200)[:, None]
+    omega = 2 * jnp.pi * jnp.asarray([1.0, 1.7, 2.3])
+    phase, amplitude = jnp.asarray([0.2, 0.9, 1.4]), jnp.asarray([0.04, 0.04, rotation])
+    u = amplitude * jnp.sin(omega * t + phase)
+    ud = amplitude * omega * jnp.cos(omega * t + phase)
+    udd = -amplitude * omega**2 * jnp.sin(omega * t + phase)
+    return Motion(*jax.vmap(lambda *p: jaxbal.pose_motion(robot, *p))(u, ud, udd))
+
+
+def test_dual_v_conditions_match_the_paper():
+    """van der Wijk et al. (2013), §2: with a non-rotated platform both counter-mass
+    designs, eq (1) and eq (2), meet the force conditions (a one-parameter family:
+    3 conditions on the 4 counter-mass moments); with platform rotation four more
+    conditions involve only the distal links and the platform -- no counter-mass design
+    balances it ("motion with a rotated platform is not perfectly force-balanced")."""
+    from jaxbal.robots import dual_v_balancing
+
+    robot = jaxbal.robots.dual_v()
+    designs = [
+        dual_v_balancing.with_counter_mass_moments(robot, equation(robot))
+        for equation in (dual_v_balancing.balance_condition_eq1,
+                         dual_v_balancing.balance_condition_eq2)
+    ]  # fmt: skip
+    translation = balancing.balancing_conditions(robot, _dual_v_motion(robot, 0.0))
+    assert translation.rank == 6
+    for design in designs:
+        np.testing.assert_allclose(translation.residuals(design), 0.0, atol=1e-12)
+    rotation = balancing.balancing_conditions(robot, _dual_v_motion(robot, 0.2))
+    assert rotation.rank == 12
+    prefixes = ("counter_mass", "tuning_mass", "rotor")
+    balance_masses = np.asarray([name.startswith(prefixes) for name in rotation.names])
+    without = [row for row in rotation.matrix if not np.any(row[balance_masses])]
+    assert len(without) == 4
+    assert np.max(np.abs(rotation.residuals(designs[0]))) > 0.1

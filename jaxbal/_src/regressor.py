@@ -270,12 +270,14 @@ class Conditions(NamedTuple):
         (coefficients below ``atol`` omitted)."""
         lines = []
         for row in self.matrix:
-            terms = [
-                (name if np.isclose(c, 1.0, rtol=0, atol=atol) else f"{c:.{digits}g} {name}")
-                for c, name in zip(row, self.names, strict=True)
-                if abs(c) > atol
-            ]
-            lines.append(" + ".join(terms).replace("+ -", "- ") + " = 0")
+            text = ""
+            for c, name in zip(row, self.names, strict=True):
+                if abs(c) <= atol:
+                    continue
+                size = "" if np.isclose(abs(c), 1.0, rtol=0, atol=atol) else f"{abs(c):.{digits}g} "
+                sign = ("- " if c < 0 else "+ ") if text else ("-" if c < 0 else "")
+                text += f"{' ' if text else ''}{sign}{size}{name}"
+            lines.append(text + " = 0")
         return lines
 
 
