@@ -20,6 +20,18 @@ def test_readme_example_runs():
     assert abs(float(output.getvalue().split()[0]) / 44.3 - 1) < 0.01
 
 
+def test_readme_balancing_example_prints_its_conditions():
+    """The balancing example prints the four conditions and residuals the README shows."""
+    text = README.read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    code = next(b for b in blocks if "# balancing example" in b)
+    shown = text[text.index(code) + len(code) :].split("```\n")[2]
+    output = io.StringIO()
+    with contextlib.redirect_stdout(output):
+        exec(compile(code, "README.md", "exec"), {})
+    assert output.getvalue().strip() == shown.strip()
+
+
 @pytest.mark.slow
 def test_readme_results_block_equals_a_fresh_reproduction(tmp_path):
     """The README quotes what `make reproduce` generates: run every experiment into a
