@@ -160,6 +160,17 @@ def test_bad_input_raises():
         balancing.linear_wrench(arm, Motion(motion.q.at[2, 0].set(jnp.nan), *motion[1:]))
     with pytest.raises(ValueError, match="q must have shape"):
         balancing.wrench_regressor(arm, jnp.zeros(3), jnp.zeros(2), jnp.zeros(2))
+    broken = eqx.tree_at(lambda r: r.lengths, arm, jnp.asarray([jnp.nan, L2]))
+    with pytest.raises(ValueError, match="PlanarArm.lengths"):
+        balancing.wrench_regressor(broken, *(x[0] for x in motion))
+    with pytest.raises(ValueError, match="PlanarArm.lengths"):
+        balancing.balancing_conditions(broken, motion)
+    negative = eqx.tree_at(lambda r: r.masses, arm, jnp.asarray([-1.0, 1.0]))
+    with pytest.raises(ValueError, match="body masses"):
+        balancing.lumped_parameters(negative)
+    conditions = balancing.balancing_conditions(arm, motion)
+    with pytest.raises(ValueError, match="conditions are for"):
+        conditions.residuals(jaxbal.robots.scara())
 
 
 def test_scara_conditions_are_arakelian_briot():

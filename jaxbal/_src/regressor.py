@@ -56,11 +56,21 @@ import numpy as np
 
 from jaxbal._src.linalg import cos_sin, matmul_transposed, vee
 from jaxbal._src.metrics import Motion, as_motion
-from jaxbal._src.momentum import checked_state
+from jaxbal._src.momentum import (
+    checked_bodies,
+    checked_finite,
+    checked_parameters,
+    checked_state,
+)
 from jaxbal._src.planar import PlanarRobot
 from jaxbal._src.robot import Bodies, Robot, rot_z_from
 from jaxbal._src.types import Array, Coordinates
-from jaxbal._src.validation import is_traced, raise_if_invalid
+from jaxbal._src.validation import (
+    is_traced,
+    raise_if_invalid,
+    runtime_checks,
+    runtime_checks_enabled,
+)
 
 __all__ = [
     "LUMPED",
@@ -93,8 +103,11 @@ def _of_bodies(bodies: Bodies) -> Array:
 
 def lumped_parameters(robot: Robot) -> Array:
     """``(b, 10)`` lumped parameters :data:`LUMPED` of the robot's bodies (rows in the
-    order of :meth:`~jaxbal.robot.Robot.mass_properties`) [kg, kg·m, kg·m²]."""
-    return _of_bodies(robot.mass_properties())
+    order of :meth:`~jaxbal.robot.Robot.mass_properties`) [kg, kg·m, kg·m²].
+
+    Raises ``ValueError`` (at run time under ``jit``) for a negative or non-finite body
+    mass or inertia, or a non-finite robot parameter, as :func:`jaxbal.center_of_mass`."""
+    return checked_parameters(robot, checked_bodies(robot, _of_bodies(robot.mass_properties())))
 
 
 def parameter_names(robot: Robot) -> tuple[str, ...]:
@@ -204,11 +217,14 @@ def wrench_regressor(robot: Robot, q: Coordinates, qd: Coordinates, qdd: Coordin
         The columns are independent of the robot's masses. Batch with ``jax.vmap``.
 
     Raises:
-        ValueError: a wrong shape or, eagerly, a non-finite state.
+        ValueError: a wrong shape; eagerly, a non-finite state or robot parameter (e.g.
+            a NaN length set with ``eqx.tree_at``) or an overflow; under ``jit`` the
+            same value checks at run time (:func:`jaxbal.set_runtime_checks`).
     """
     q, qd, qdd = checked_state(robot, q, qd, qdd)
     force, moment = _columns(frame_kinematics(robot, q, qd, qdd))
-    return force.reshape(3, -1), moment.reshape(3, -1)
+    columns = checked_parameters(robot, (force.reshape(3, -1), moment.reshape(3, -1)))
+    return checked_finite("wrench regressor", robot, columns)
 
 
 class LinearWrench(NamedTuple):
@@ -226,8 +242,11 @@ class LinearWrench(NamedTuple):
 
 
 @eqx.filter_jit
-def _along(robot: Robot, motion: Motion):
-    return jax.vmap(lambda *state: wrench_regressor(robot, *state))(*motion)
+def _along(robot: Robot, motion: Motion, checks: bool):
+    """:func:`wrench_regressor` at every sample (``checks``: static, the runtime value
+    checks on or off while tracing, so that each setting has its own program)."""
+    with runtime_checks(checks):
+        return jax.vmap(lambda *state: wrench_regressor(robot, *state))(*motion)
 
 
 def linear_wrench(robot: Robot, motion) -> LinearWrench:
@@ -235,12 +254,17 @@ def linear_wrench(robot: Robot, motion) -> LinearWrench:
     :class:`~jaxbal.design.Motion` or ``(q, q̇, q̈)`` of ``(t, dof)``), compiled once
     per robot structure and motion length."""
     motion = as_motion(motion)
-    if not is_traced(robot, motion):
-        finite = jnp.all(jnp.isfinite(jnp.concatenate(motion, axis=-1)), axis=-1)
-        raise_if_invalid(finite, "non-finite state (q, qd, qdd) in the motion at samples",
-                         jnp.arange(finite.shape[0]))  # fmt: skip
-    force, moment = _along(robot, motion)
-    return LinearWrench(force, moment, parameter_names(robot))
+    if is_traced(robot, motion):
+        force, moment = _along(robot, motion, runtime_checks_enabled())
+        return LinearWrench(force, moment, parameter_names(robot))
+    # eagerly the values are checked here, by name (inside vmap a runtime check would
+    # surface as a JAX-internal callback error), and the compiled program runs unchecked
+    checked_parameters(robot, None)
+    finite = jnp.all(jnp.isfinite(jnp.concatenate(motion, axis=-1)), axis=-1)
+    raise_if_invalid(finite, "non-finite state (q, qd, qdd) in the motion at samples",
+                     jnp.arange(finite.shape[0]))  # fmt: skip
+    columns = checked_finite("wrench regressor", robot, _along(robot, motion, False))
+    return LinearWrench(*columns, parameter_names(robot))
 
 
 class Conditions(NamedTuple):
@@ -262,7 +286,18 @@ class Conditions(NamedTuple):
     rank: int
 
     def residuals(self, robot: Robot) -> np.ndarray:
-        """``(k,)`` ``matrix @ π`` of ``robot`` (zero when it meets the conditions)."""
+        """``(k,)`` ``matrix @ π`` of ``robot`` (zero when it meets the conditions)
+        [kg, kg·m, kg·m² as the rows mix them].
+
+        Raises:
+            ValueError: ``robot``'s bodies are not those the conditions were derived for.
+        """
+        names = parameter_names(robot)
+        if names != self.names:
+            raise ValueError(
+                f"the conditions are for the parameters {self.names[:3]}… "
+                f"({len(self.names)}), this robot has {names[:3]}… ({len(names)})"
+            )
         return self.matrix @ np.ravel(np.asarray(lumped_parameters(robot)))
 
     def equations(self, digits: int = 6, atol: float = 1e-12) -> list[str]:
