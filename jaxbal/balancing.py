@@ -7,26 +7,5 @@ vanishes along a motion.
 See :mod:`jaxbal._src.regressor` (formulas, rank decision, references).
 """
 
-from jaxbal._src.regressor import (
-    LUMPED,
-    RANK_RTOL,
-    Conditions,
-    LinearWrench,
-    balancing_conditions,
-    linear_wrench,
-    lumped_parameters,
-    parameter_names,
-    wrench_regressor,
-)
-
-__all__ = [
-    "LUMPED",
-    "RANK_RTOL",
-    "Conditions",
-    "LinearWrench",
-    "balancing_conditions",
-    "linear_wrench",
-    "lumped_parameters",
-    "parameter_names",
-    "wrench_regressor",
-]
+from jaxbal._src.regressor import *  # noqa: F403
+from jaxbal._src.regressor import __all__  # noqa: F401

@@ -74,6 +74,7 @@ from jaxbal._src.validation import (
 
 __all__ = [
     "LUMPED",
+    "RANK_RTOL",
     "Conditions",
     "LinearWrench",
     "balancing_conditions",
