@@ -645,7 +645,8 @@ def test_counter_masses_and_design_variables():
 @pytest.mark.slow
 def test_cli_balance_force_balances_the_five_bar(tmp_path):
     """``jaxbal balance`` prints the peaks of a quintic move and a counter-mass design
-    whose peak shaking force is below 1e-9 of the unbalanced one; bad input exits 2."""
+    whose peak shaking force is below 1e-9 of the unbalanced one (``--conditions``: and
+    the six force-balancing conditions, which the design meets); bad input exits 2."""
     from jaxbal._src.cli import app
 
     path = tmp_path / "five_bar.xml"
@@ -663,6 +664,12 @@ def test_cli_balance_force_balances_the_five_bar(tmp_path):
     assert values["peak shaking force"] > 1.0
     assert values["balanced peak shaking force"] < 1e-9 * values["peak shaking force"]
     assert all(body in result.output for body in ("crank_a", "distal_a", "crank_b", "distal_b"))
+    assert "force-balancing conditions" not in result.output
+    with_conditions = runner.invoke(app, ["balance", str(path), *options, *poses, "--conditions"])
+    assert with_conditions.exit_code == 0, with_conditions.output
+    lines = with_conditions.output.splitlines()
+    assert "force-balancing conditions along the move (6):" in lines
+    assert float(lines[-1].split()[-1]) < 1e-9  # the co-designed design meets them
     bad = runner.invoke(app, ["balance", str(path), "--actuated", "a,zz", *poses])
     assert bad.exit_code == 2 and "unknown joint 'zz'" in bad.output
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import typer
 
 app = typer.Typer(
@@ -81,7 +82,10 @@ _BALANCE_HELP = (
     "then puts a point counter-mass on each counter body (the mirror image of the body's "
     "mass about its frame origin), co-designs their positions in the body frames for the "
     "least RMS shaking force (jaxbal.design.codesign, the motion held fixed) and prints the "
-    "design and the peaks after.\n\n"
+    "design and the peaks after. With --conditions it also prints the linear conditions on "
+    "the bodies' lumped inertial parameters under which the shaking force vanishes along "
+    "the move (jaxbal.balancing.balancing_conditions) and how far the design is from them."
+    "\n\n"
     "Example: jaxbal balance five_bar.xml --actuated a,b --site tip "
     "--start -0.05,0.35 --end 0.05,0.4 --duration 0.3"
 )
@@ -106,6 +110,9 @@ def balance(
     ),
     free_masses: bool = typer.Option(
         False, "--free-masses", help="optimise the counter masses too (default: positions only)"
+    ),
+    conditions: bool = typer.Option(
+        False, "--conditions", help="print the force-balancing conditions along the move"
     ),
 ):
     """Shaking-force peaks of a move of ROBOT and a force-balancing counter-mass design."""
@@ -139,6 +146,15 @@ def balance(
         typer.echo(f"  {name:16s} {mass:10.6g} kg at ({x:.6g}, {y:.6g}, {z:.6g})")
     typer.echo(f"balanced peak shaking force  {result.peak_force[1]:.6g} N")
     typer.echo(f"balanced peak shaking moment {result.peak_moment[1]:.6g} N·m")
+    if conditions:
+        from jaxbal._src.regressor import balancing_conditions
+
+        found = balancing_conditions(start_design, motion)
+        typer.echo(f"force-balancing conditions along the move ({found.rank}):")
+        for equation in found.equations(6, atol=1e-9):
+            typer.echo(f"  {equation}")
+        residual = float(np.max(np.abs(found.residuals(result.robot)), initial=0.0))
+        typer.echo(f"largest residual of the design {residual:.3g}")
 
 
 @app.command("sweep")
