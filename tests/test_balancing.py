@@ -165,6 +165,10 @@ def test_bad_input_raises():
         balancing.wrench_regressor(broken, *(x[0] for x in motion))
     with pytest.raises(ValueError, match="PlanarArm.lengths"):
         balancing.balancing_conditions(broken, motion)
+    with pytest.raises(Exception, match="robot parameters must be finite"):  # under jit
+        jax.block_until_ready(
+            eqx.filter_jit(balancing.wrench_regressor)(broken, *(x[0] for x in motion))
+        )
     negative = eqx.tree_at(lambda r: r.masses, arm, jnp.asarray([-1.0, 1.0]))
     with pytest.raises(ValueError, match="body masses"):
         balancing.lumped_parameters(negative)
