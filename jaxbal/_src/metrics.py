@@ -95,23 +95,26 @@ ADDED_MASS_VARIABLES = ("counter_mass", "vertical_counterweight")
 # --- metrics -----------------------------------------------------------------------------
 
 
-def _batched(evaluate, robot: Robot, motion: Motion, what: str, jerk: bool = False):
+def _batched(evaluate, robot: Robot, motion: Motion, what: str, jerk: bool = False, run=None):
     """``evaluate(robot, q, qd, qdd)`` at every sample of the motion (``vmap``);
-    ``evaluate(robot, q, qd, qdd, qddd)`` with ``jerk`` (``motion`` a JerkMotion).
+    ``evaluate(robot, q, qd, qdd, qddd)`` with ``jerk`` (``motion`` a JerkMotion);
+    ``run(evaluate, robot, motion)`` evaluates the samples (default :func:`_samples`;
+    e.g. a compiled program keyed on :func:`~jaxbal.runtime_checks` being on or off).
 
     An eager call checks the values first and raises ``ValueError``: inside ``vmap`` the
     runtime checks would surface as a JAX-internal callback error (``INTERNAL:
     CpuCallback error``) instead of naming the offending value.
     """
     motion = motion if jerk else as_motion(motion)
+    run = _samples if run is None else run
     if is_traced(robot, motion):
-        return _samples(evaluate, robot, motion)
+        return run(evaluate, robot, motion)
     checked_parameters(robot, checked_bodies(robot, None))
     finite = jnp.all(jnp.isfinite(jnp.concatenate(motion, axis=-1)), axis=-1)
     raise_if_invalid(finite, "non-finite state (q, qd, qdd) in the motion at samples",
                      jnp.arange(finite.shape[0]))  # fmt: skip
     with runtime_checks(False):  # checked above and below, eagerly
-        out = _samples(evaluate, robot, motion)
+        out = run(evaluate, robot, motion)
     return checked_finite(what, robot, out)
 
 

@@ -292,8 +292,8 @@ def replayed(enabled: bool):
     (sweeps, throughput), but generating it adds trace time and its many scalar
     operations add compile time. A program that runs a few hundred times, such as the
     co-design's value and gradient, starts sooner without it (measured on the 2-core
-    CPU: the first DUAL-V co-design 1.47 s → 1.10 s, each later evaluation ~1.3×
-    slower)."""
+    CPU: the first DUAL-V co-design 1.47 s → 1.10 s, each later evaluation
+    ~1.5–2× slower)."""
     before = _REPLAY[0]
     _REPLAY[0] = bool(enabled)
     try:

@@ -55,7 +55,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.linalg import cos_sin, matmul_transposed, vee
-from jaxbal._src.metrics import Motion, as_motion
+from jaxbal._src.metrics import Motion, _batched
 from jaxbal._src.momentum import (
     checked_bodies,
     checked_finite,
@@ -65,12 +65,7 @@ from jaxbal._src.momentum import (
 from jaxbal._src.planar import PlanarRobot
 from jaxbal._src.robot import Bodies, Robot, rot_z_from
 from jaxbal._src.types import Array, Coordinates
-from jaxbal._src.validation import (
-    is_traced,
-    raise_if_invalid,
-    runtime_checks,
-    runtime_checks_enabled,
-)
+from jaxbal._src.validation import runtime_checks, runtime_checks_enabled
 
 __all__ = [
     "LUMPED",
@@ -250,22 +245,17 @@ def _along(robot: Robot, motion: Motion, checks: bool):
         return jax.vmap(lambda *state: wrench_regressor(robot, *state))(*motion)
 
 
+def _compiled(evaluate, robot: Robot, motion: Motion):
+    return _along(robot, motion, runtime_checks_enabled())
+
+
 def linear_wrench(robot: Robot, motion) -> LinearWrench:
     """:func:`wrench_regressor` at every sample of ``motion`` (a
     :class:`~jaxbal.design.Motion` or ``(q, q̇, q̈)`` of ``(t, dof)``), compiled once
-    per robot structure and motion length."""
-    motion = as_motion(motion)
-    if is_traced(robot, motion):
-        force, moment = _along(robot, motion, runtime_checks_enabled())
-        return LinearWrench(force, moment, parameter_names(robot))
-    # eagerly the values are checked here, by name (inside vmap a runtime check would
-    # surface as a JAX-internal callback error), and the compiled program runs unchecked
-    checked_parameters(robot, None)
-    finite = jnp.all(jnp.isfinite(jnp.concatenate(motion, axis=-1)), axis=-1)
-    raise_if_invalid(finite, "non-finite state (q, qd, qdd) in the motion at samples",
-                     jnp.arange(finite.shape[0]))  # fmt: skip
-    columns = checked_finite("wrench regressor", robot, _along(robot, motion, False))
-    return LinearWrench(*columns, parameter_names(robot))
+    per robot structure and motion length; eagerly the robot and motion are checked by
+    name first, as the metrics' (a NaN length, a negative mass, a non-finite state)."""
+    force, moment = _batched(wrench_regressor, robot, motion, "wrench regressor", run=_compiled)
+    return LinearWrench(force, moment, parameter_names(robot))
 
 
 class Conditions(NamedTuple):
