@@ -333,8 +333,8 @@ def balancing_conditions(
     moment, or both) vanishes at every sample of ``motion`` (module doc).
 
     Args:
-        robot: any :class:`~jaxbal.robot.Robot` (its masses are not used: only its
-            frames and the list of its bodies).
+        robot: any :class:`~jaxbal.robot.Robot` (the conditions do not depend on its
+            masses: only on its frames and the list of its bodies).
         motion: a :class:`~jaxbal.design.Motion` or ``(q, q̇, q̈)`` of ``(t, dof)``;
             use a generic one (every joint moving independently) for the conditions
             of balance along every motion.
@@ -346,7 +346,8 @@ def balancing_conditions(
         robot balanced along the motion.
 
     Raises:
-        ValueError: an unknown ``part`` or a ``rtol`` outside ``(0, 1)``.
+        ValueError: an unknown ``part``, a ``rtol`` outside ``(0, 1)``, or (as
+            :func:`linear_wrench`) an invalid robot or motion.
     """
     if part not in ("force", "moment", "both"):
         raise ValueError(f"part must be 'force', 'moment' or 'both', got {part!r}")
