@@ -83,23 +83,43 @@ def closed_form_2r(arm: jaxbal.robots.PlanarArm):
     return wrench
 
 
+def _chunk_loop(fn, chunk: int):
+    """``(q, qd, qdd) -> outputs`` of ``fn`` (one state) over ``(N, ·)`` states, ``vmap``
+    over chunks of ``chunk`` states in a loop. Each chunk is a dynamic slice of the
+    inputs (the last one overlaps its predecessor when ``chunk`` does not divide ``N``):
+    ``lax.map(batch_size=)`` copies every input first when it does not (the first
+    ``N − N mod chunk`` rows, reshaped), which cost more than the DUAL-V's wrench itself
+    (~100 ns per 11-coordinate state on the 2-core CPU)."""
+    batched = jax.vmap(fn)
+
+    def run(*states):
+        n = states[0].shape[0]
+        size = min(chunk, n)
+        shapes = jax.eval_shape(batched, *(x[:size] for x in states))
+        outs = jax.tree_util.tree_map(lambda s: jnp.zeros((n, *s.shape[1:]), s.dtype), shapes)
+
+        def body(i, outs):
+            start = jnp.minimum(i * size, n - size)
+            part = batched(*(jax.lax.dynamic_slice_in_dim(x, start, size) for x in states))
+            return jax.tree_util.tree_map(
+                lambda o, p: jax.lax.dynamic_update_slice_in_dim(o, p, start, 0), outs, part
+            )
+
+        return jax.lax.fori_loop(0, -(-n // size), body, outs)
+
+    return run
+
+
 def chunked(fn, chunk: int):
     """``jit`` of ``fn`` (one state) over ``(N, ·)`` states in chunks of ``chunk``."""
-
-    def run(q, qd, qdd):
-        return jax.lax.map(lambda s: fn(*s), (q, qd, qdd), batch_size=chunk)
-
-    return jax.jit(run)
+    return jax.jit(_chunk_loop(fn, chunk))
 
 
 def sharded(fn, chunk: int):
     """Like :func:`chunked`, with the states split over all local devices (``pmap``)."""
     devices = jax.local_device_count()
 
-    def run(q, qd, qdd):
-        return jax.lax.map(lambda s: fn(*s), (q, qd, qdd), batch_size=chunk)
-
-    mapped = jax.pmap(run)
+    mapped = jax.pmap(_chunk_loop(fn, chunk))
 
     def call(q, qd, qdd):
         usable = q.shape[0] - q.shape[0] % devices

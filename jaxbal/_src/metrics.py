@@ -52,6 +52,7 @@ from jaxbal._src.momentum import (
     checked_bodies,
     checked_finite,
     checked_parameters,
+    replayed,
     shaking_wrench,
 )
 from jaxbal._src.motion_samples import JerkMotion, Motion, as_motion, motion_samples
@@ -180,11 +181,14 @@ def _peak_traced_jvp(evaluate, pick, primals, tangents):
     vectors = _all_samples(evaluate, pick, robot, motion)
     index = jnp.argmax(jnp.sum(jnp.square(vectors / _unit_scale(vectors)), axis=-1))
     # differentiate only the inputs with a tangent: the others stay constants of the
-    # re-evaluation, as they are of the evaluation of every sample above, so that the
-    # robot's generated straight-line code (keyed on which leaves are traced) is
-    # reused, not generated again (the first gradient of a DUAL-V traced 0.4 s less);
-    # the values were checked by that evaluation (same robot, same states): the
-    # re-evaluation at t* runs without its own runtime checks
+    # re-evaluation, as they are of the evaluation of every sample above; the values
+    # were checked by that evaluation (same robot, same states): the re-evaluation at
+    # t* runs without its own runtime checks. It is one sample, not a batch, so it is
+    # evaluated as written, without the straight-line replay (momentum.replayed): the
+    # replay's gain is XLA fusing its scalar code across the batch, while for a single
+    # sample its ~1,000 scalar operations compile to more kernels than the array code
+    # (measured on the 2-core CPU: DUAL-V peak-force gradient ~75 → ~50 µs against a
+    # ~35 µs value, first gradient 1.65 → 1.43 s; the 2R and SCARA within noise)
     leaves, treedef = jax.tree_util.tree_flatten(primals)
     directions = jax.tree_util.tree_leaves(tangents, is_leaf=lambda t: isinstance(t, SymbolicZero))
     active = [not isinstance(t, SymbolicZero) for t in directions]
@@ -197,7 +201,7 @@ def _peak_traced_jvp(evaluate, pick, primals, tangents):
 
     moving = [leaf for leaf, a in zip(leaves, active, strict=True) if a]
     directions = [t for t, a in zip(directions, active, strict=True) if a]
-    with runtime_checks(False):
+    with runtime_checks(False), replayed(False):
         _, derivative = jax.jvp(local, moving, directions)
     return peak_norm(vectors), derivative
 
