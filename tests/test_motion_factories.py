@@ -99,9 +99,12 @@ def test_jerk_motion_gives_the_same_other_metrics(arm):
     times = jaxbal.sample_times(CYCLE, 12)
     two = TrapezoidLine(START, END, times)(arm, THETA)
     three = TrapezoidLine(START, END, times, order=3)(arm, THETA)
+    # q, q̇ identical; q̈ from two separately compiled programs agrees to rounding
+    for a, b in zip(two, three[:3], strict=True):
+        np.testing.assert_allclose(np.asarray(b), np.asarray(a), rtol=0, atol=1e-13 * 450)
     for name in ("peak_force", "rms_torque"):
         metric = eqx.filter_jit(jaxbal.design.METRICS[name])
-        assert float(metric(arm, three)) == float(metric(arm, two))
+        np.testing.assert_allclose(float(metric(arm, three)), float(metric(arm, two)), rtol=1e-13)
 
 
 def test_duration_is_the_cycle_time(arm):

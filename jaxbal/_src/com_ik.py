@@ -22,7 +22,7 @@ import jax.numpy as jnp
 
 from jaxbal._src.implicit import newton_solve
 from jaxbal._src.momentum import center_of_mass
-from jaxbal._src.validation import is_traced, raise_if_invalid
+from jaxbal._src.validation import guard
 
 
 def _pose(x, free):
@@ -88,6 +88,6 @@ def numerical_com_inverse_kinematics(
         _pose(solution.value, free), branch=branch, return_valid=True
     )
     valid = solution.converged & reachable
-    if not return_valid and not is_traced(valid):
-        raise_if_invalid(valid, f"COM target not reachable by {type(robot).__name__}", com)
-    return (q, valid) if return_valid else q
+    if return_valid:
+        return q, valid
+    return guard(q, ~valid, f"COM target not reachable by {type(robot).__name__}", com)

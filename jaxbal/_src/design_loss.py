@@ -68,6 +68,17 @@ def _to_design(params: dict[str, Array], problem: _Problem) -> dict[str, Array]:
     return design
 
 
+def _to_design_numpy(params: Mapping[str, np.ndarray], problem: _Problem) -> dict:
+    """:func:`_to_design` in NumPy (the optimiser's final point, on the host)."""
+    design = {}
+    for name, two, lo, hi in zip(
+        problem.free, problem.two_sided, problem.lower, problem.upper, strict=True
+    ):
+        r, lo, hi = (np.asarray(a, dtype=float) for a in (params[name], lo, hi))
+        design[name] = lo + (hi - lo) * np.sin(r) ** 2 if two else lo + r**2
+    return design
+
+
 def _to_params(design: Mapping[str, np.ndarray], problem: _Problem) -> dict[str, Array]:
     """Parameters ``r`` of a design, moved :data:`START_OFFSET` inside the bounds."""
     params = {}

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -17,7 +16,7 @@ from jaxbal._src.motion import state_valid
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import sample
 from jaxbal._src.types import Array, Float
-from jaxbal._src.validation import raise_if_invalid
+from jaxbal._src.validation import checked_call, raise_if_invalid
 
 __all__ = ["JerkMotion", "Motion", "as_motion", "motion_samples"]
 
@@ -44,14 +43,20 @@ class JerkMotion(NamedTuple):
     qddd: Float[Array, "t dof"]
 
 
-@eqx.filter_jit
-def _sample(trajectory, times, order=2):
-    return sample(trajectory, times, order=order)
+def sampled(trajectory, times, order):
+    """``sample(trajectory, times, order)`` as a tuple; call it through
+    :func:`~jaxbal._src.validation.checked_call` (compiled, functional checks)."""
+    return tuple(sample(trajectory, times, order=order))
 
 
-@eqx.filter_jit
-def _valid(robot, q, qd, qdd):
-    return jax.vmap(lambda a, b, c: state_valid(robot, a, b, c))(q, qd, qdd)
+def _sample(robot, trajectory, times, order):
+    """The samples of ``trajectory`` and the validity of each state (loop closures,
+    finite): one program, compiled by :func:`~jaxbal._src.validation.checked_call`, whose
+    runtime checks (e.g. a trajectory's duration) are functional, so that the
+    persistent compilation cache keeps it for the next process."""
+    q, qd, qdd, *jerk = sample(trajectory, times, order=order)
+    valid = jax.vmap(lambda a, b, c: state_valid(robot, a, b, c))(q, qd, qdd)
+    return (q, qd, qdd, *jerk), valid
 
 
 def motion_samples(robot: Robot, trajectories, times, order: int = 2) -> Motion | JerkMotion:
@@ -92,9 +97,11 @@ def motion_samples(robot: Robot, trajectories, times, order: int = 2) -> Motion 
         if instants.ndim != 1:
             raise ValueError(f"times must have shape (t,), got {instants.shape}")
         # A lambda or closure as a pytree: an equivalent new one reuses the compilation.
-        q, qd, qdd, *jerk = _sample(as_pytree(trajectory), instants, order)
+        (q, qd, qdd, *jerk), valid = checked_call(
+            _sample, robot, as_pytree(trajectory), instants, order
+        )
         raise_if_invalid(
-            _valid(robot, q, qd, qdd),
+            valid,
             f"trajectory leaves the loop closures of {type(robot).__name__} (or is not "
             "finite) at t [s]",
             instants,

@@ -3,6 +3,13 @@
 Outside a trace, bad values raise :class:`ValueError` naming the offending value.
 Inside a trace the concrete value is unknown: callers either return a validity mask
 or use :func:`equinox.error_if`, which raises at run time with a static message.
+
+Programs that jaxbal compiles itself and calls eagerly (e.g. the sampling of
+:func:`~jaxbal.design.motion_samples`) trace the same checks as functional errors
+instead (:func:`checked_call`, ``jax.experimental.checkify``): the compiled program then
+has no host callback, so JAX's persistent compilation cache keeps it for the next
+process (it refuses programs with callbacks), and the error is raised on the host as a
+``ValueError`` with the same message.
 """
 
 from __future__ import annotations
@@ -13,6 +20,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
+from jax.experimental import checkify
 
 
 def is_traced(*values) -> bool:
@@ -112,7 +120,57 @@ def guard(value, invalid, message: str, offending, names=None):
         return value
     if not runtime_checks_enabled():
         return value
+    if _FUNCTIONAL[0]:
+        # braces of the message escaped: checkify formats it with the offending values
+        text = message.replace("{", "{{").replace("}", "}}")
+        checkify.check(~jnp.any(invalid), text + ": {}", offending)
+        return value
     return eqx.error_if(value, jnp.any(invalid), message)
+
+
+#: whether traced guards are functional checkify checks (:func:`checked_call`).
+_FUNCTIONAL = [False]
+
+
+def checked_call(fn, *args):
+    """``eqx.filter_jit(fn)(*args)`` for a plain function ``fn`` that jaxbal compiles and
+    calls eagerly itself, with the runtime checks of its guards traced as functional
+    errors (``jax.experimental.checkify``) and raised here as ``ValueError``.
+
+    The compiled program has no host callback, so the persistent compilation cache
+    keeps it for the next process, and returns the error with the values. With the
+    runtime checks off (:func:`set_runtime_checks`) it is the plain compiled call;
+    under a trace (traced ``args``), ``fn`` itself (its guards as usual).
+    """
+    if is_traced(args):
+        return fn(*args)
+    if not runtime_checks_enabled():
+        return _compiled(fn, False)(*args)
+    previous = _FUNCTIONAL[0]
+    _FUNCTIONAL[0] = True
+    try:
+        error, out = _compiled(fn, True)(*args)
+    finally:
+        _FUNCTIONAL[0] = previous
+    message = error.get()
+    if message is not None:
+        # checkify appends " (`check` failed)" and the location on further lines
+        raise ValueError(message.split("\n")[0].strip().removesuffix(" (`check` failed)"))
+    return out
+
+
+_PROGRAMS: dict = {}
+
+
+def _compiled(fn, functional: bool):
+    """The compiled ``fn``, or its :func:`checkify.checkify` (user checks) with
+    ``functional``: two separate programs, so that neither is traced with the other's
+    kind of check."""
+    key = (fn, functional)
+    if key not in _PROGRAMS:
+        body = checkify.checkify(fn, errors=checkify.user_checks) if functional else fn
+        _PROGRAMS[key] = eqx.filter_jit(body)
+    return _PROGRAMS[key]
 
 
 @contextlib.contextmanager

@@ -71,7 +71,7 @@ from jaxbal._src.robots.dual_v_layout import (
     dual_v_tree,
 )
 from jaxbal._src.types import Array, Float
-from jaxbal._src.validation import check_nonnegative, check_shape, raise_if_invalid
+from jaxbal._src.validation import check_nonnegative, check_shape, guard
 
 __all__ = ["CROSSED", "OUTWARD", "DualV", "dual_v"]
 
@@ -286,8 +286,6 @@ class DualV(PlanarRobot):
         cos_alpha = (self.l1**2 + distance2 - self.l2**2) / (2.0 * self.l1 * distance)
         valid = jnp.all(jnp.abs(cos_alpha) <= 1.0) & jnp.all(distance2 > 1e-20) & finite
         cos_alpha = jnp.where(jnp.isfinite(cos_alpha), cos_alpha, 0.0)
-        if not return_valid:
-            raise_if_invalid(valid, "DUAL-V platform pose outside the workspace", pose_given)
         alpha = jnp.arccos(jnp.clip(cos_alpha, -1.0 + 1e-15, 1.0 - 1e-15))
         # an arm folded onto its pivot (reach 0): arctan2's gradient is NaN, use (1, 0)
         direction = jnp.where((distance2 > 1e-20)[:, None], reach, jnp.array([1.0, 0.0]))
@@ -295,7 +293,10 @@ class DualV(PlanarRobot):
         to_end = reach - self.l1[:, None] * unit(theta1)
         theta2 = jnp.arctan2(to_end[:, 1], to_end[:, 0])
         q = jnp.concatenate([theta1, theta2, pose])
-        return (q, valid) if return_valid else q
+        if return_valid:
+            return q, valid
+        message = "DUAL-V platform pose outside the workspace"
+        return guard(q, ~valid, message, pose_given)  # under jit too
 
     def design(self) -> dict:
         """``counter_mass`` ``(4,)`` [kg]: the mounted counter-masses (tuning fraction

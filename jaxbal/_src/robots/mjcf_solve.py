@@ -24,7 +24,7 @@ import numpy as np
 
 from jaxbal._src.implicit import newton_solve
 from jaxbal._src.robots.mjcf_kinematics import world_frames
-from jaxbal._src.validation import check_shape, is_traced, raise_if_invalid
+from jaxbal._src.validation import check_shape, guard
 
 __all__ = ["closure", "closure_motion", "inverse_kinematics", "pose_motion"]
 
@@ -91,8 +91,7 @@ def closure(robot, q_independent, guess=None, *, return_valid: bool = False):
     if return_valid:
         return q, valid
     message = "loop closure does not converge (not assemblable, or singular) for q_independent"
-    raise_if_invalid(valid, message, q_independent)
-    return q
+    return guard(q, ~valid, message, q_independent)  # under jit too
 
 
 def closure_motion(robot, u, u_d, u_dd, guess=None, *, return_valid: bool = False):
@@ -104,9 +103,9 @@ def closure_motion(robot, u, u_d, u_dd, guess=None, *, return_valid: bool = Fals
     """
     u, u_d, u_dd = (jnp.asarray(v, dtype=float) for v in (u, u_d, u_dd))
     q, valid = robot.closure(u, guess, return_valid=True)
-    if not return_valid:
+    if not return_valid:  # under jit too
         message = "loop closure does not converge (not assemblable, or singular) for u"
-        raise_if_invalid(valid, message, u)
+        q = guard(q, ~valid, message, u)
     if not robot.dependent:
         q_d, q_dd = robot.assemble(u_d, jnp.zeros(0)), robot.assemble(u_dd, jnp.zeros(0))
         return (q, q_d, q_dd, valid) if return_valid else (q, q_d, q_dd)
@@ -140,8 +139,9 @@ def pose_motion(robot, pose, pose_d, pose_dd, guess=None, *, return_valid: bool 
     """
     pose_d, pose_dd = (jnp.asarray(v, dtype=float) for v in (pose_d, pose_dd))
     q, valid = inverse_kinematics(robot, pose, guess, return_valid=True)
-    if not return_valid and not is_traced(valid):
-        raise_if_invalid(valid, "end-effector pose not reached by Newton's method", pose)
+    if not return_valid:  # under jit too
+        message = "end-effector pose not reached by Newton's method"
+        q = guard(q, ~valid, message, pose)
     closures = robot.closure_count()
 
     def equations(x):
@@ -190,10 +190,8 @@ def inverse_kinematics(robot, pose, guess=None, *, return_valid: bool = False):
     q = jnp.where(jnp.isfinite(solution.value), solution.value, start)
     if return_valid:
         return q, valid
-    if not is_traced(valid):
-        message = (
-            "end-effector pose not reached by Newton's method (out of reach, singular, "
-            "or in another assembly mode: try guess=)"
-        )
-        raise_if_invalid(valid, message, pose)
-    return q
+    message = (
+        "end-effector pose not reached by Newton's method (out of reach, singular, "
+        "or in another assembly mode: try guess=)"
+    )
+    return guard(q, ~valid, message, pose)  # under jit too

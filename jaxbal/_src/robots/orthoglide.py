@@ -61,7 +61,12 @@ from jaxbal._src.robot import Bodies, Robot, concatenate, point_masses
 from jaxbal._src.robots.orthoglide_layout import COUNTER_SLIDERS, orthoglide_tree
 from jaxbal._src.trajectory import StraightLine
 from jaxbal._src.types import Array, Float
-from jaxbal._src.validation import check_nonnegative, check_shape, is_traced, raise_if_invalid
+from jaxbal._src.validation import (
+    check_nonnegative,
+    check_shape,
+    guard,
+    raise_if_invalid,
+)
 
 __all__ = ["COUNTER_SLIDERS", "Orthoglide", "motion_cases", "orthoglide", "switching_times"]
 
@@ -250,14 +255,13 @@ class Orthoglide(Robot):
         signs = jnp.asarray(self.branch(branch), dtype=float)
         radicand = self._radicands(p)
         valid = jnp.all(radicand > 0.0) & jnp.all(jnp.isfinite(p))
-        if not return_valid:
-            raise_if_invalid(valid, "platform point (pose) out of reach of the Orthoglide legs", p)
         # an invalid point gives the home configuration p = 0, so q stays finite
-        p = jnp.where(valid, p, 0.0)
+        given, p = p, jnp.where(valid, p, 0.0)
         radicand = jnp.where(valid, radicand, self.length**2)
         rho = p + signs * jnp.sqrt(jnp.maximum(radicand, 1e-30))
         q = jnp.concatenate([rho, p])
-        return (q, valid) if return_valid else q
+        out_of_reach = "platform point (pose) out of reach of the Orthoglide legs"
+        return (q, valid) if return_valid else guard(q, ~valid, out_of_reach, given)
 
     def forward_kinematics(self, rho, return_valid: bool = False):
         """Platform point ``p (3,)`` [m] from the inputs ``ρ (3,)`` [m], closed form.
@@ -332,11 +336,10 @@ class Orthoglide(Robot):
         p = solution.value
         reachable = jnp.all(self._radicands(p) > 0.0)
         valid = solution.converged & reachable
-        if not return_valid and not is_traced(valid):
-            raise_if_invalid(valid, "COM target not reachable by the Orthoglide", com)
         rho = p + signs * jnp.sqrt(jnp.maximum(self._radicands(p), 1e-30))
         q = jnp.concatenate([rho, p])
-        return (q, valid) if return_valid else q
+        unreachable = "COM target not reachable by the Orthoglide"
+        return (q, valid) if return_valid else guard(q, ~valid, unreachable, com)
 
     def mujoco_tree(self) -> Tree:
         """Sliders, parallelograms on ball joints closed by ``connect`` at P, the

@@ -37,7 +37,7 @@ from jaxbal._src.mujoco.tree import Joint, Tree, TreeBody, Z, identity
 from jaxbal._src.planar import PlanarRobot
 from jaxbal._src.robot import Bodies, concatenate, planar_inertia, point_masses
 from jaxbal._src.types import Array, Float
-from jaxbal._src.validation import check_nonnegative, check_shape, raise_if_invalid
+from jaxbal._src.validation import check_nonnegative, check_shape, guard, raise_if_invalid
 
 
 def _partial_sums(values):
@@ -201,14 +201,15 @@ class PlanarArm(PlanarRobot):
             target = target - self.lengths[2] * unit(pose[2])
         q1, q2, valid = two_link_ik(target, self.lengths[0], self.lengths[1], mode)
         valid = valid & finite
-        if not return_valid:
-            raise_if_invalid(valid, "end-effector pose outside the workspace", pose_given)
         q = jnp.stack([wrap(q1), q2])
         if n == 3:
             # φ wrapped first: φ − q1 − q2 would lose q1 + q2 to rounding for a large φ
             # (φ = 1e10 rad put the tip 4e-8 m off, φ = 1e300 rad 0.15 m, valid True).
             q = jnp.concatenate([q, wrap(wrap(pose[2]) - q1 - q2)[None]])
-        return (q, valid) if return_valid else q
+        if return_valid:
+            return q, valid
+        # under jit too (a clipped, silently wrong q before): see validation.guard
+        return guard(q, ~valid, "end-effector pose outside the workspace", pose_given)
 
     def com_inverse_kinematics(
         self, com, free=None, *, branch=None, return_valid: bool = False, guess=None
@@ -248,8 +249,6 @@ class PlanarArm(PlanarRobot):
         c = jnp.sum(target**2) + l_eq[0] ** 2 - l_eq[1] ** 2
         discriminant = b**2 - c**2 + a**2
         valid = (discriminant >= 0.0) & jnp.all(jnp.isfinite(com))
-        if not return_valid:
-            raise_if_invalid(valid, "COM target not reachable by the arm", com)
         root = jnp.sqrt(jnp.maximum(discriminant, 1e-30))
         # eq (10): t = (−b ± √Δ)/(c − a) = (c + a)/(−b ∓ √Δ); use the larger denominator.
         den1 = c - a
@@ -266,7 +265,9 @@ class PlanarArm(PlanarRobot):
         q = jnp.stack([q1, wrap(theta2 - q1)])
         if n == 3:
             q = jnp.concatenate([q, wrap(free - theta2)[None]])
-        return (q, valid) if return_valid else q
+        if return_valid:
+            return q, valid
+        return guard(q, ~valid, "COM target not reachable by the arm", com)  # under jit too
 
     # --- MuJoCo --------------------------------------------------------------------
 

@@ -58,7 +58,12 @@ from jaxbal._src.mujoco.tree import Joint, Tree, TreeBody, Z
 from jaxbal._src.profiles import Profile, Quintic
 from jaxbal._src.robot import Bodies, Robot, concatenate, planar_inertia, point_masses, rot_z
 from jaxbal._src.types import Array, Float, ScalarLike
-from jaxbal._src.validation import check_nonnegative, check_shape, is_traced, raise_if_invalid
+from jaxbal._src.validation import (
+    check_nonnegative,
+    check_shape,
+    guard,
+    is_traced,
+)
 
 __all__ = [
     "PickAndPlace",
@@ -216,10 +221,11 @@ class Scara(Robot):
         pose = jnp.where(finite, pose, jnp.zeros_like(pose).at[0].set(self.lengths[0]))
         q1, q2, valid = two_link_ik(pose[:2], self.lengths[0], self.lengths[1], mode)
         valid = valid & finite
-        if not return_valid:
-            raise_if_invalid(valid, "SCARA end-effector pose out of reach (x, y, φ, z)", pose_given)
         q = jnp.stack([q1, q2, pose[2] - q1 - q2, pose[3]])
-        return (q, valid) if return_valid else q
+        if return_valid:
+            return q, valid
+        message = "SCARA end-effector pose out of reach (x, y, φ, z)"
+        return guard(q, ~valid, message, pose_given)  # under jit too
 
     # --- MuJoCo --------------------------------------------------------------------
 

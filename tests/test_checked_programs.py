@@ -1,0 +1,98 @@
+"""Programs jaxbal compiles itself trace their runtime checks as functional errors
+(validation.checked_call, checkify): no host callback (the persistent compilation cache
+keeps them), the same ValueError on the host. And an unreachable pose is refused under
+``jit`` too: inverse kinematics without ``return_valid`` returned a clipped, silently
+wrong ``q`` when traced (e.g. a straight line that leaves the workspace, sampled by
+``motion_samples``)."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxbal
+from jaxbal._src import validation
+from jaxbal._src.motion_samples import _sample
+from jaxbal.design import motion_samples
+from jaxbal.planning import EndEffectorLine
+from jaxbal.profiles import Quintic
+
+TIMES = jnp.linspace(0.0, 0.2, 11)
+
+
+def _line(start, end):
+    return jaxbal.StraightLine(jnp.asarray(start), jnp.asarray(end), Quintic(), 0.2)
+
+
+#: robot, a reachable pose, an unreachable one, the IK's message
+CASES = {
+    "planar_2r": (jaxbal.robots.planar_2r, (0.4, 0.3), (2.2, 0.5), "outside the workspace"),
+    "scara": (
+        jaxbal.robots.scara, (0.15, 0.2, 1.4, 0.0), (2.0, 0.2, 1.4, 0.0), "out of reach",
+    ),
+    "dual_v": (
+        jaxbal.robots.dual_v, (0.0, -0.05, 0.0), (3.0, 0.0, 0.0), "outside the workspace",
+    ),
+    "orthoglide": (
+        jaxbal.robots.orthoglide, (0.0, 0.0, 0.0), (3.0, 0.0, 0.0), "out of reach",
+    ),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_a_line_leaving_the_workspace_is_refused_by_motion_samples(name):
+    make, inside, outside, message = CASES[name]
+    robot = make()
+    motion = motion_samples(robot, EndEffectorLine(robot, _line(inside, inside)), TIMES)
+    assert np.all(np.isfinite(np.asarray(motion.q)))
+    with pytest.raises(ValueError, match=message):
+        motion_samples(robot, EndEffectorLine(robot, _line(inside, outside)), TIMES)
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_inverse_kinematics_refuses_an_unreachable_pose_under_jit(name):
+    make, inside, outside, message = CASES[name]
+    robot = make()
+    ik = jax.jit(lambda pose: robot.inverse_kinematics(pose))
+    assert np.all(np.isfinite(np.asarray(ik(jnp.asarray(inside)))))
+    with pytest.raises(Exception, match=message):  # equinox's runtime error
+        jax.block_until_ready(ik(jnp.asarray(outside)))
+    # the mask of return_valid is unchanged: no error, q finite, valid False
+    q, valid = jax.jit(lambda p: robot.inverse_kinematics(p, return_valid=True))(
+        jnp.asarray(outside)
+    )
+    assert not bool(valid) and np.all(np.isfinite(np.asarray(q)))
+
+
+def test_sampling_program_has_no_host_callback_and_raises_the_named_error():
+    robot = jaxbal.robots.planar_2r()
+    path = EndEffectorLine(robot, _line((0.4, 0.3), (0.2, 0.5)))
+    previous = validation._FUNCTIONAL[0]
+    validation._FUNCTIONAL[0] = True
+    try:
+        text = validation._compiled(_sample, True).lower(robot, path, TIMES, 2).as_text()
+    finally:
+        validation._FUNCTIONAL[0] = previous
+    assert "callback" not in text.lower()
+    assert "sine" in text  # the program samples the move
+    # a duration made negative by eqx.tree_at: the functional check names it
+    bad = eqx.tree_at(lambda p: p.line.duration, path, jnp.asarray(-1.0))
+    with pytest.raises(ValueError, match=r"duration must be finite and > 0 \[s\]: -1.0$"):
+        motion_samples(robot, bad, TIMES)
+
+
+def test_checked_call_with_checks_off_or_traced_arguments_is_a_plain_call():
+    def double(x):
+        return 2.0 * validation.guard(x, x < 0, "x must be >= 0", x)
+
+    assert float(validation.checked_call(double, jnp.asarray(2.0))) == 4.0
+    with pytest.raises(ValueError, match="x must be >= 0"):
+        validation.checked_call(double, jnp.asarray(-1.0))
+    with validation.runtime_checks(False):
+        assert float(validation.checked_call(double, jnp.asarray(-1.0))) == -2.0
+    # traced: fn itself, its guard an equinox runtime error
+    traced = jax.jit(lambda x: validation.checked_call(double, x))
+    assert float(traced(jnp.asarray(3.0))) == 6.0
+    with pytest.raises(Exception, match="x must be >= 0"):
+        jax.block_until_ready(traced(jnp.asarray(-3.0)))
