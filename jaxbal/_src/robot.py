@@ -210,7 +210,8 @@ class Robot(eqx.Module):
 
         Raises:
             ValueError: eagerly (``return_valid=False``), naming the pose, when it is
-                out of reach.
+                out of reach; under ``jit`` the same check raises at run time
+                (:func:`jaxbal._src.validation.guard`), never a clipped ``q``.
         """
         raise NotImplementedError(f"{type(self).__name__} has no inverse kinematics")
 

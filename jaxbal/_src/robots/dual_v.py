@@ -271,7 +271,7 @@ class DualV(PlanarRobot):
 
         Raises:
             ValueError: eagerly, when the pose is outside the workspace (unless
-                ``return_valid``).
+                ``return_valid``); under ``jit`` a runtime error.
         """
         pose = pose_given = jnp.asarray(pose, dtype=float)
         check_shape("pose", pose, (3,))

@@ -248,7 +248,7 @@ class Orthoglide(Robot):
             configuration ``p = 0``, finite).
 
         Raises:
-            ValueError: eagerly, when ``p`` is out of reach of a leg (‖p_⊥‖ ≥ L).
+            ValueError: when ``p`` is out of reach of a leg (‖p_⊥‖ ≥ L); under jit at run time.
         """
         p = jnp.asarray(pose, dtype=float)
         check_shape("pose", p, (3,))
@@ -317,7 +317,7 @@ class Orthoglide(Robot):
             guess: ``(3,)`` initial platform point [m] (default: home, 0).
 
         Raises:
-            ValueError: eagerly, when the target is not a COM of the robot.
+            ValueError: when the target is not a COM of the robot (under jit at run time).
         """
         com = jnp.asarray(com, dtype=float)
         check_shape("com", com, (3,))

@@ -185,7 +185,8 @@ class PlanarArm(PlanarRobot):
             return_valid: return ``(q, valid)`` and never raise (batched code).
 
         Raises:
-            ValueError: eagerly, when the pose is outside the workspace.
+            ValueError: eagerly, when the pose is outside the workspace (under
+                ``jit`` a runtime error).
         """
         pose = pose_given = jnp.asarray(pose, dtype=float)
         n = self.n_links
@@ -230,7 +231,8 @@ class PlanarArm(PlanarRobot):
             guess: ignored (closed form; kept for the contract's signature).
 
         Raises:
-            ValueError: eagerly, naming the target, when no configuration reaches it.
+            ValueError: eagerly, naming the target, when no configuration reaches it
+                (under ``jit`` a runtime error).
         """
         com = jnp.asarray(com, dtype=float)
         (mode,) = self.branch(branch)

@@ -210,7 +210,8 @@ class Scara(Robot):
             return_valid: return ``(q, valid)`` and never raise (batched code).
 
         Raises:
-            ValueError: eagerly, naming the pose, when (x, y) is out of reach.
+            ValueError: eagerly, naming the pose, when (x, y) is out of reach (under
+                ``jit`` a runtime error).
         """
         pose = pose_given = jnp.asarray(pose, dtype=float)
         check_shape("pose", pose, (4,))
