@@ -96,3 +96,14 @@ def test_checked_call_with_checks_off_or_traced_arguments_is_a_plain_call():
     assert float(traced(jnp.asarray(3.0))) == 6.0
     with pytest.raises(Exception, match="x must be >= 0"):
         jax.block_until_ready(traced(jnp.asarray(-3.0)))
+
+
+def test_orthoglide_forward_kinematics_refuses_unassemblable_inputs_under_jit():
+    robot = jaxbal.robots.orthoglide()
+    bad = jnp.array([0.9, 0.1, 0.1])
+    with pytest.raises(ValueError, match="not assemblable"):
+        robot.forward_kinematics(bad)
+    with pytest.raises(Exception, match="not assemblable"):
+        jax.block_until_ready(jax.jit(lambda r: robot.forward_kinematics(r))(bad))
+    _, valid = robot.forward_kinematics(bad, return_valid=True)  # a mask, no error
+    assert not bool(valid)

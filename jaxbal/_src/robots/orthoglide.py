@@ -65,7 +65,6 @@ from jaxbal._src.validation import (
     check_nonnegative,
     check_shape,
     guard,
-    raise_if_invalid,
 )
 
 __all__ = ["COUNTER_SLIDERS", "Orthoglide", "motion_cases", "orthoglide", "switching_times"]
@@ -271,8 +270,8 @@ class Orthoglide(Robot):
         assembly modes); the smaller ``p_x`` is the working mode (``p = 0`` at ``ρ = L``).
 
         Raises:
-            ValueError: eagerly, when ρ is not assemblable (negative discriminant) or
-                an input is not positive.
+            ValueError: eagerly (under ``jit`` at run time), when ρ is not assemblable
+                (negative discriminant) or an input is not positive.
         """
         rho = jnp.asarray(rho, dtype=float)
         check_shape("rho", rho, (3,))
@@ -284,13 +283,13 @@ class Orthoglide(Robot):
         qc = rx**2 + ay**2 + az**2 - self.length**2
         disc = qb**2 - 4.0 * qa * qc
         valid = (disc >= 0.0) & jnp.all(rho > 0.0)
-        raise_if_invalid(valid, "inputs rho not assemblable by the Orthoglide", rho)
         root = jnp.sqrt(jnp.maximum(disc, 1e-30))
         # smaller root (−qb − √Δ)/(2qa), in the cancellation-free form 2qc/(−qb + √Δ)
         # (qb < 0 in the workspace).
         px = 2.0 * qc / (-qb + root)
         p = jnp.stack([px, ay + by * px, az + bz * px])
-        return (p, valid) if return_valid else p
+        unassemblable = "inputs rho not assemblable by the Orthoglide"
+        return (p, valid) if return_valid else guard(p, ~valid, unassemblable, rho)
 
     # --- centre of mass ---------------------------------------------------------------
 
