@@ -127,16 +127,22 @@ def bench_block(result: dict) -> str:
     lines += [
         "",
         "| first call in a fresh process [s] | grad, cold | grad, warm cache | co-design, cold "
-        "| co-design, warm |",
-        "|---|---:|---:|---:|---:|",
+        "| co-design, warm | move, cold | move, warm | `checked_jit` grad, warm |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|",
     ]
+
+    def seconds(run, key):
+        return "—" if key not in run else f"{run[key]:.2f}"
+
     for name, modes in result["first_call"].items():
         for mode, runs in modes.items():
             cold, warm = runs["cold"], runs["warm"]
             lines.append(
                 f"| {name}, runtime checks {mode.split('_')[1]} | "
                 f"{cold['first_grad_seconds']:.2f} | {warm['first_grad_seconds']:.2f} | "
-                f"{cold['first_codesign_seconds']:.2f} | {warm['first_codesign_seconds']:.2f} |"
+                f"{cold['first_codesign_seconds']:.2f} | {warm['first_codesign_seconds']:.2f} | "
+                f"{cold['motion_seconds']:.2f} | {warm['motion_seconds']:.2f} | "
+                f"{seconds(warm, 'first_checked_jit_grad_seconds')} |"
             )
     lines += [
         "",

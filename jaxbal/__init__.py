@@ -41,7 +41,7 @@ from jaxbal._src.motion import (
 from jaxbal._src.optimize import Solution, minimize
 from jaxbal._src.robot import Bodies, Robot
 from jaxbal._src.trajectory import StraightLine, sample, sample_times, time_derivatives
-from jaxbal._src.validation import runtime_checks, set_runtime_checks
+from jaxbal._src.validation import checked_jit, runtime_checks, set_runtime_checks
 
 __version__ = "0.2.0"
 
@@ -67,6 +67,7 @@ __all__ = [
     "balancing",
     "body_com_positions",
     "center_of_mass",
+    "checked_jit",
     "check_state",
     "confirm",
     "confirm_path",

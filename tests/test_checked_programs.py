@@ -71,7 +71,8 @@ def test_sampling_program_has_no_host_callback_and_raises_the_named_error():
     previous = validation._FUNCTIONAL[0]
     validation._FUNCTIONAL[0] = True
     try:
-        text = validation._compiled(_sample, True).lower(robot, path, TIMES, 2).as_text()
+        program = validation.checked_jit(_sample).compiled(True)
+        text = program.lower(robot, path, TIMES, 2).as_text()
     finally:
         validation._FUNCTIONAL[0] = previous
     assert "callback" not in text.lower()
@@ -107,3 +108,52 @@ def test_orthoglide_forward_kinematics_refuses_unassemblable_inputs_under_jit():
         jax.block_until_ready(jax.jit(lambda r: robot.forward_kinematics(r))(bad))
     _, valid = robot.forward_kinematics(bad, return_valid=True)  # a mask, no error
     assert not bool(valid)
+
+
+def test_checked_jit_of_a_user_gradient_equals_jit_has_no_callback_and_names_errors():
+    from jaxbal.design import peak_force
+
+    robot = jaxbal.robots.planar_2r()
+    motion = motion_samples(robot, EndEffectorLine(robot, _line((0.4, 0.3), (0.2, 0.5))), TIMES)
+
+    def objective(design):
+        return peak_force(robot.with_design(design), motion)
+
+    design = robot.design()
+    checked = jaxbal.checked_jit(jax.grad(objective))
+    ours, reference = checked(design), jax.jit(jax.grad(objective))(design)
+    for name in design:
+        assert np.all(np.isfinite(np.asarray(ours[name])))
+        np.testing.assert_allclose(np.asarray(ours[name]), np.asarray(reference[name]), rtol=1e-12)
+    previous = validation._FUNCTIONAL[0]
+    validation._FUNCTIONAL[0] = True
+    try:
+        text = checked.compiled(True).lower(design).as_text()
+    finally:
+        validation._FUNCTIONAL[0] = previous
+    assert "callback" not in text.lower()
+    # a negative counter-mass (as an optimiser could set it): the named ValueError
+    bad = {**design, "counter_mass": jnp.asarray([-1.0, 0.5])}
+    with pytest.raises(ValueError, match="body masses must be finite and >= 0"):
+        checked(bad)
+
+
+def test_com_trapezoid_valid_marks_the_samples_its_call_would_refuse():
+    from jaxbal.design import ComTrapezoid
+
+    arm = jaxbal.robots.planar_2r()
+    q_a = arm.inverse_kinematics(jnp.array([0.4, 0.3]))
+    q_b = arm.inverse_kinematics(jnp.array([0.2, 0.5]))
+    theta = {"u2": 0.25, "ratio": 0.5}
+    move = ComTrapezoid(q_a, q_b, jaxbal.sample_times(0.5, 11), branch=-1)
+    assert np.all(np.asarray(move.valid(arm, theta)))
+    assert np.all(np.isfinite(np.asarray(move(arm, theta).q)))
+    # stretched along +x, then along −x: the straight COM line crosses the hole of the
+    # 2R's annular COM workspace (|x_S| ≥ |k1 − k2| / m > 0) in the middle of the move
+    move = ComTrapezoid(
+        jnp.array([0.0, 0.0]), jnp.array([jnp.pi, 0.0]), jaxbal.sample_times(0.5, 11)
+    )
+    mask = np.asarray(move.valid(arm, theta))
+    assert mask[0] and mask[-1] and not mask[5]
+    with pytest.raises(ValueError, match="COM target not reachable"):
+        move(arm, theta)

@@ -192,6 +192,20 @@ class ComTrapezoid(eqx.Module):
         _check_static(self.order, self.per_phase)
 
     def __call__(self, robot: Robot, theta) -> Motion | JerkMotion:
+        times, profile, path = self._plan(robot, theta)
+        motion = _sampled(path, _with_phases(times, profile, self.per_phase), self.order)
+        return _joins(robot, motion, self.q_start, self.q_end, times.shape[0] - 1)
+
+    def valid(self, robot: Robot, theta) -> Array:
+        """``(t,)`` boolean mask, one entry per sample instant (the jerk-phase instants
+        included): is the COM target reachable there? Where it is False, calling the
+        factory raises (eagerly and under ``jit``); e.g. a payload that moves the COM
+        line out of the robot's COM workspace."""
+        times, profile, path = self._plan(robot, theta)
+        return path.valid(_with_phases(times, profile, self.per_phase))
+
+    def _plan(self, robot: Robot, theta):
+        """``(times, profile, COM line)`` of the move for ``robot`` and ``θ``."""
         times = _times(self.times, theta)
         duration = times[-1]
         profile = _profile(theta)
@@ -206,5 +220,4 @@ class ComTrapezoid(eqx.Module):
                 )
             free = StraightLine(pose[0], pose[1], BoundaryPolynomial(theta["phi"]), duration)
         path = com_line(robot, self.q_start, self.q_end, profile, duration, free, self.branch)
-        motion = _sampled(path, _with_phases(times, profile, self.per_phase), self.order)
-        return _joins(robot, motion, self.q_start, self.q_end, times.shape[0] - 1)
+        return times, profile, path

@@ -6,7 +6,7 @@ or use :func:`equinox.error_if`, which raises at run time with a static message.
 
 Programs that jaxbal compiles itself and calls eagerly (e.g. the sampling of
 :func:`~jaxbal.design.motion_samples`) trace the same checks as functional errors
-instead (:func:`checked_call`, ``jax.experimental.checkify``): the compiled program then
+instead (:func:`checked_jit`, ``jax.experimental.checkify``): the compiled program then
 has no host callback, so JAX's persistent compilation cache keeps it for the next
 process (it refuses programs with callbacks), and the error is raised on the host as a
 ``ValueError`` with the same message.
@@ -15,6 +15,7 @@ process (it refuses programs with callbacks), and the error is raised on the hos
 from __future__ import annotations
 
 import contextlib
+import functools
 
 import equinox as eqx
 import jax
@@ -128,49 +129,75 @@ def guard(value, invalid, message: str, offending, names=None):
     return eqx.error_if(value, jnp.any(invalid), message)
 
 
-#: whether traced guards are functional checkify checks (:func:`checked_call`).
+#: whether traced guards are functional checkify checks (:func:`checked_jit`).
 _FUNCTIONAL = [False]
 
 
-def checked_call(fn, *args):
-    """``eqx.filter_jit(fn)(*args)`` for a plain function ``fn`` that jaxbal compiles and
-    calls eagerly itself, with the runtime checks of its guards traced as functional
-    errors (``jax.experimental.checkify``) and raised here as ``ValueError``.
+def checked_jit(fn):
+    """``jit`` of ``fn`` whose runtime checks raise ``ValueError`` on the host and whose
+    compiled program the persistent compilation cache keeps.
 
-    The compiled program has no host callback, so the persistent compilation cache
-    keeps it for the next process, and returns the error with the values. With the
-    runtime checks off (:func:`set_runtime_checks`) it is the plain compiled call;
-    under a trace (traced ``args``), ``fn`` itself (its guards as usual).
+    Under ``jax.jit`` jaxbal's value checks (:func:`guard`: finite states, non-negative
+    masses, reachable poses …) are host callbacks (:func:`equinox.error_if`), and JAX
+    does not store programs with callbacks in its persistent cache, so a second Python
+    process compiles them again. ``checked_jit(fn)`` traces the same checks as
+    functional errors (:func:`jax.experimental.checkify.checkify`, user checks): the
+    program has no callback, returns the error with the values, and the call raises a
+    ``ValueError`` with the check's message and the offending values. With the runtime
+    checks off (:func:`set_runtime_checks`) it is ``eqx.filter_jit(fn)``; called under
+    a trace (traced arguments), it is ``fn`` itself.
+
+    Example::
+
+        grad = jaxbal.checked_jit(jax.grad(lambda d: peak_force(robot.with_design(d), motion)))
+        grad(robot.design())   # the next process loads the compiled program from the cache
+
+    Args:
+        fn: a function of positional arguments (arrays, pytrees such as robots and
+            motions; other values are static, as for ``eqx.filter_jit``).
+
+    Returns:
+        The checked, compiled function.
     """
-    if is_traced(args):
-        return fn(*args)
-    if not runtime_checks_enabled():
-        return _compiled(fn, False)(*args)
-    previous = _FUNCTIONAL[0]
-    _FUNCTIONAL[0] = True
-    try:
-        error, out = _compiled(fn, True)(*args)
-    finally:
-        _FUNCTIONAL[0] = previous
-    message = error.get()
-    if message is not None:
-        # checkify appends " (`check` failed)" and the location on further lines
-        raise ValueError(message.split("\n")[0].strip().removesuffix(" (`check` failed)"))
-    return out
+    programs = {}
+
+    def compiled(functional: bool):
+        if functional not in programs:
+            body = checkify.checkify(fn, errors=checkify.user_checks) if functional else fn
+            programs[functional] = eqx.filter_jit(body)
+        return programs[functional]
+
+    @functools.wraps(fn)
+    def call(*args):
+        if is_traced(args):
+            return fn(*args)
+        if not runtime_checks_enabled():
+            return compiled(False)(*args)
+        previous = _FUNCTIONAL[0]
+        _FUNCTIONAL[0] = True
+        try:
+            error, out = compiled(True)(*args)
+        finally:
+            _FUNCTIONAL[0] = previous
+        message = error.get()
+        if message is not None:
+            # checkify appends " (`check` failed)" and the location on further lines
+            raise ValueError(message.split("\n")[0].strip().removesuffix(" (`check` failed)"))
+        return out
+
+    call.compiled = compiled  # the two programs, for inspection (tests)
+    return call
 
 
-_PROGRAMS: dict = {}
+_LIBRARY: dict = {}
 
 
-def _compiled(fn, functional: bool):
-    """The compiled ``fn``, or its :func:`checkify.checkify` (user checks) with
-    ``functional``: two separate programs, so that neither is traced with the other's
-    kind of check."""
-    key = (fn, functional)
-    if key not in _PROGRAMS:
-        body = checkify.checkify(fn, errors=checkify.user_checks) if functional else fn
-        _PROGRAMS[key] = eqx.filter_jit(body)
-    return _PROGRAMS[key]
+def checked_call(fn, *args):
+    """``checked_jit(fn)(*args)`` for a module-level function of jaxbal, compiled once
+    per process (e.g. the sampling of :func:`~jaxbal.design.motion_samples`)."""
+    if fn not in _LIBRARY:
+        _LIBRARY[fn] = checked_jit(fn)
+    return _LIBRARY[fn](*args)
 
 
 @contextlib.contextmanager
