@@ -28,10 +28,11 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.momentum import center_of_mass
+from jaxbal._src.momentum import center_of_mass, shaking_wrench
 from jaxbal._src.optimize import minimize
 from jaxbal._src.planning import (
     ComLine,
@@ -44,8 +45,9 @@ from jaxbal._src.planning import (
 from jaxbal._src.profiles import BangBang, BoundaryPolynomial, Profile, Quintic
 from jaxbal._src.rate_limit import RateLimitedPlan, plan_rate_limited
 from jaxbal._src.robots.planar_arm import PlanarArm, force_balanced
-from jaxbal._src.trajectory import StraightLine, sample_times
+from jaxbal._src.trajectory import StraightLine, sample, sample_times
 from jaxbal._src.types import Array, Float
+from jaxbal._src.validation import runtime_checks
 
 __all__ = [
     "TEMPERATURES",
@@ -111,7 +113,11 @@ def moment_objective(coefficients, robot: PlanarArm, start, end, temperature, pa
     """Smoothed ``max_t |m_sh,z(t)|`` [N·m] of case 2 for the φ-law ``coefficients``
     (eq 19), on ``samples`` instants; ``path`` a 3R :class:`ComPath`."""
     times = sample_times(path.duration, samples)
-    _, moments = wrench_along(robot, path(BangBang(), (robot, start, end, coefficients)), times)
+    q, qd, qdd = sample(path(BangBang(), (robot, start, end, coefficients)), times, order=2)
+    # the wrench traced here, not through the compiled `wrench_along`: a trace of it made
+    # with the runtime checks on (any earlier call) would be reused inside the optimiser,
+    # which traces with them off (the flag is not part of jit's cache key)
+    _, moments = jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c))(q, qd, qdd)
     return smooth_peak(moments[:, 2], temperature)
 
 
@@ -144,7 +150,13 @@ def optimal_phi_coefficients(
         coefficients = jnp.asarray(rng.normal(0.0, 30.0, 3) if index else best)
         for temperature in temperatures:
             args = (robot, start, end, jnp.asarray(temperature), path, samples)
-            solution = minimize(moment_objective, coefficients, max_steps=60, gtol=1e-9, args=args)
+            # runtime checks off: a line-search trial may move the COM line out of reach
+            # (the COM IK refuses it under jit); a start is kept only if its final plan
+            # is reachable at every instant (below)
+            with runtime_checks(False):
+                solution = minimize(
+                    moment_objective, coefficients, max_steps=60, gtol=1e-9, args=args
+                )
             if bool(jnp.all(jnp.isfinite(solution.params))):
                 coefficients = solution.params
         trajectory = path(BangBang(), (robot, start, end, coefficients))
