@@ -35,6 +35,7 @@ from jaxbal._src.validation import (
     guard,
     is_traced,
     runtime_checks,
+    switched,
 )
 
 
@@ -294,12 +295,8 @@ def replayed(enabled: bool):
     co-design's value and gradient, starts sooner without it (measured on the 2-core
     CPU: the first DUAL-V co-design 1.47 s → 1.10 s, each later evaluation
     ~1.5–2× slower)."""
-    before = _REPLAY[0]
-    _REPLAY[0] = bool(enabled)
-    try:
+    with switched(_REPLAY, enabled):
         yield
-    finally:
-        _REPLAY[0] = before
 
 
 def _shaking_wrench(robot: Robot, q, qd, qdd, gravity, replay: bool | None = None):

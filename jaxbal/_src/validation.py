@@ -173,12 +173,8 @@ def checked_jit(fn):
             return fn(*args)
         if not runtime_checks_enabled():
             return compiled(False)(*args)
-        previous = _FUNCTIONAL[0]
-        _FUNCTIONAL[0] = True
-        try:
+        with switched(_FUNCTIONAL, True):
             error, out = compiled(True)(*args)
-        finally:
-            _FUNCTIONAL[0] = previous
         message = error.get()
         if message is not None:
             # checkify appends " (`check` failed)" and the location on further lines
@@ -208,9 +204,17 @@ def runtime_checks(enabled: bool):
     points on purpose (and reject them), while the reparametrised design variables
     cannot become negative; the starting design is checked before.
     """
-    previous = _RUNTIME_CHECKS[0]
-    _RUNTIME_CHECKS[0] = bool(enabled)
+    with switched(_RUNTIME_CHECKS, enabled):
+        yield
+
+
+@contextlib.contextmanager
+def switched(flag: list, enabled: bool):
+    """Context manager: the one-element list ``flag`` (a switch read while tracing) set
+    to ``enabled`` inside the block, restored after it."""
+    previous = flag[0]
+    flag[0] = bool(enabled)
     try:
         yield
     finally:
-        _RUNTIME_CHECKS[0] = previous
+        flag[0] = previous
