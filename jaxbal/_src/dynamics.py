@@ -1,17 +1,27 @@
-"""Inverse dynamics by Lagrange's equations, through automatic differentiation.
+"""Inverse dynamics of any robot with independent coordinates, through automatic
+differentiation.
 
-For a robot whose coordinates ``q`` are independent (serial arms), the generalised
-forces needed to follow ``(q, q̇, q̈)`` are
+The generalised forces needed to follow ``(q, q̇, q̈)`` are those of Lagrange's
+equations, ``τ = d/dt ∂T/∂q̇ − ∂T/∂q + ∂V/∂q`` (kinetic energy ``T`` of every body,
+payload and counter-masses included; potential ``V = −Σ m_i g·c_i``). They are
+evaluated in the equivalent form of Kane's equations (d'Alembert's principle): the
+Newton–Euler inertial wrench of every body projected on its partial velocities,
 
-    τ = d/dt ∂T/∂q̇ − ∂T/∂q + ∂V/∂q,
+    τ = Σ_i J_v,iᵀ m_i (a_i − g) + J_ω,iᵀ (I_i α_i + ω_i × I_i ω_i),
 
-with the kinetic energy ``T`` of every body (payload and counter-masses included) and
-the potential ``V = −Σ m_i g·c_i``. The total derivative is one ``jax.jvp``; nothing is
-robot-specific. Parallel robots reduce these generalised forces to their actuators
-with their own constraint Jacobians (see the robot's module).
+with ``v_i = J_v,i q̇``, ``ω_i = J_ω,i q̇`` (COM and angular velocities, base frame,
+``I_i`` the inertia in the base frame). The accelerations ``(a_i, α_i)`` are one
+``jax.jvp`` of the body velocities along ``(q̇, q̈)``, and the projection ``Jᵀ(·)`` one
+``jax.vjp`` in ``q̇`` (the velocities are linear in ``q̇``): no second derivative of
+``T``, about half the compile time of differentiating ``T`` twice (measured on the
+2-core CPU: the 2R 3.6 → 1.8 s, the DUAL-V's 11 coordinates 5.5 → 3.0 s) and
+1.1–1.7× faster. Nothing is robot-specific. Parallel robots reduce these generalised
+forces to their actuators with their loop-closure Jacobians
+(:func:`jaxbal.actuator_torques`).
 
 References:
-    Khalil & Dombre (2002), ch. 9 (Lagrange formulation), cited by Briot et al. (2012).
+    Khalil & Dombre (2002), ch. 9 (Lagrange formulation), cited by Briot et al. (2012);
+    Kane & Levinson (1985), *Dynamics: Theory and Applications*, ch. 6.
 """
 
 from __future__ import annotations
@@ -19,7 +29,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from jaxbal._src.linalg import matvec, rmatvec
+from jaxbal._src.linalg import cross, matvec, rmatvec
 from jaxbal._src.momentum import (
     body_com_positions,
     body_velocities,
@@ -30,6 +40,7 @@ from jaxbal._src.momentum import (
 )
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Coordinates, Float, Scalar, Vec3
+from jaxbal._src.validation import check_shape
 
 
 def kinetic_energy(robot: Robot, q: Coordinates, qd: Coordinates) -> Scalar:
@@ -76,14 +87,25 @@ def inverse_dynamics(
         Lagrange's equations of the second kind; Khalil & Dombre (2002).
     """
     q, qd, qdd = checked_state(robot, q, qd, qdd)
+    bodies = robot.mass_properties()
 
-    def momentum_gen(q_, qd_):
-        return jax.grad(kinetic_energy, argnums=2)(robot, q_, qd_)
+    def velocities(q_, qd_):
+        _, rotations, linear, angular = body_velocities(robot, q_, qd_)
+        return (linear, angular), rotations
 
-    _, dmomentum_dt = jax.jvp(momentum_gen, (q, qd), (qd, qdd))
-    tau = dmomentum_dt - jax.grad(kinetic_energy, argnums=1)(robot, q, qd)
+    (_, omega), (accel, alpha), rotations = jax.jvp(velocities, (q, qd), (qd, qdd), has_aux=True)
     if gravity is not None:
-        tau = tau + jax.grad(potential_energy, argnums=1)(robot, q, gravity)
+        g = jnp.asarray(gravity, dtype=float)
+        check_shape("gravity", g, (3,))
+        accel = accel - g
+
+    def world_inertia_times(x):  # R_i I_i R_iᵀ x_i, as three matrix-vector products
+        return matvec(rotations, matvec(bodies.inertia, rmatvec(rotations, x)))
+
+    force = bodies.mass[:, None] * accel
+    moment = world_inertia_times(alpha) + cross(omega, world_inertia_times(omega))
+    _, project = jax.vjp(lambda qd_: velocities(q, qd_)[0], qd)  # (f, n) -> Jᵀ(f, n)
+    (tau,) = project((force, moment))
     tau = checked_parameters(robot, checked_bodies(robot, tau))
     return checked_finite("generalised forces", robot, tau)
 
