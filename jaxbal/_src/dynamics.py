@@ -17,7 +17,11 @@ with ``v_i = J_v,i q̇``, ``ω_i = J_ω,i q̇`` (COM and angular velocities, bas
 2-core CPU: the 2R 3.6 → 1.8 s, the DUAL-V's 11 coordinates 5.5 → 3.0 s) and
 1.1–1.7× faster. Nothing is robot-specific. Parallel robots reduce these generalised
 forces to their actuators with their loop-closure Jacobians
-(:func:`jaxbal.actuator_torques`).
+(:func:`jaxbal.actuator_torques`). The two forms agree for rigid body frames; a closed
+chain whose frames are rotations only on its loops (the Orthoglide's parallelograms,
+built from the dependent coordinates) gets generalised forces that differ in the
+directions leaving the loops, which the reduction to the actuators removes
+(tests/test_kane.py compares them reduced, with ``dynamics.lagrange_forces``).
 
 References:
     Khalil & Dombre (2002), ch. 9 (Lagrange formulation), cited by Briot et al. (2012);
@@ -84,9 +88,17 @@ def inverse_dynamics(
             torques under ``jit``.
 
     References:
-        Lagrange's equations of the second kind; Khalil & Dombre (2002).
+        Lagrange's equations of the second kind; Khalil & Dombre (2002); evaluated in
+        Kane's form (module doc).
     """
     q, qd, qdd = checked_state(robot, q, qd, qdd)
+    tau = _kane_forces(robot, q, qd, qdd, gravity)
+    tau = checked_parameters(robot, checked_bodies(robot, tau))
+    return checked_finite("generalised forces", robot, tau)
+
+
+def _kane_forces(robot: Robot, q, qd, qdd, gravity) -> Coordinates:
+    """Unchecked generalised forces, Kane's form (module doc)."""
     bodies = robot.mass_properties()
 
     def velocities(q_, qd_):
@@ -105,9 +117,22 @@ def inverse_dynamics(
     force = bodies.mass[:, None] * accel
     moment = world_inertia_times(alpha) + cross(omega, world_inertia_times(omega))
     _, project = jax.vjp(lambda qd_: velocities(q, qd_)[0], qd)  # (f, n) -> Jᵀ(f, n)
-    (tau,) = project((force, moment))
-    tau = checked_parameters(robot, checked_bodies(robot, tau))
-    return checked_finite("generalised forces", robot, tau)
+    return project((force, moment))[0]
+
+
+def lagrange_forces(robot: Robot, q, qd, qdd, gravity=None) -> Coordinates:
+    """Unchecked generalised forces ``d/dt ∂T/∂q̇ − ∂T/∂q + ∂V/∂q`` by differentiating
+    the energies (:func:`kinetic_energy` twice): an independent evaluation of
+    :func:`inverse_dynamics`, kept for the tests and as the benchmark's "before"."""
+
+    def momentum_gen(q_, qd_):
+        return jax.grad(kinetic_energy, argnums=2)(robot, q_, qd_)
+
+    _, dmomentum_dt = jax.jvp(momentum_gen, (q, qd), (qd, qdd))
+    tau = dmomentum_dt - jax.grad(kinetic_energy, argnums=1)(robot, q, qd)
+    if gravity is not None:
+        tau = tau + jax.grad(potential_energy, argnums=1)(robot, q, gravity)
+    return tau
 
 
 def inverse_dynamics_rate(
