@@ -7,7 +7,11 @@ baseline the speed-ups are stated against), the MuJoCo C ``mj_inverse`` Python l
 and MJX ``inverse`` (``jit(vmap)``) on the same model and states, compile time of the
 first call, peak temporary memory per state (XLA's memory analysis), and the cost of
 ``jax.grad`` of a peak-force objective along the 1,000-sample move relative to its
-value. For the 2R, also the hand-written closed form (the limit).
+value. For the 2R, also the hand-written closed form (the limit). The actuator torques
+(``jaxbal.actuator_torques``, loop closures included) against their former evaluation
+(Lagrange's equations by differentiating the kinetic energy twice) and, for the serial
+robots whose MuJoCo model has one joint per coordinate, against MuJoCo C
+``mj_inverse``'s ``qfrc_inverse``.
 """
 
 from __future__ import annotations
@@ -21,6 +25,8 @@ import numpy as np
 from cases import chunked, closed_form_2r, robot_and_motion, sharded, tiled_states
 
 import jaxbal
+from jaxbal._src.actuation import _actuator_torques
+from jaxbal._src.dynamics import lagrange_forces
 from jaxbal._src.momentum import _shaking_wrench  # the generic evaluation, not replayed
 from jaxbal.design import peak_force
 from jaxbal.mujoco import mjx_base_reaction, mjx_model, mujoco_model
@@ -102,6 +108,48 @@ def gradient_cost(robot, motion) -> dict:
     }
 
 
+def torque_cost(robot, states, chunk: int, loop_count: int) -> dict:
+    """Actuator torques: states/s now and before (Lagrange's form), compile time of the
+    first call, agreement of the two and, for a serial robot, with MuJoCo C."""
+
+    def generic(q, qd, qdd):
+        return jaxbal.actuator_torques(robot, q, qd, qdd)
+
+    def before(q, qd, qdd):
+        return _actuator_torques(robot, q, qd, qdd, None, lagrange_forces)
+
+    count = states[0].shape[0]
+    fn, fn_before = chunked(generic, chunk), chunked(before, chunk)
+    compile_seconds = first_call(fn, *(a[:chunk] for a in states))
+    compile_before = first_call(fn_before, *(a[:chunk] for a in states))
+    t_generic = best_time(lambda: fn(*states), 3) / count
+    t_before = best_time(lambda: fn_before(*states), 3) / count
+    ours = np.asarray(fn(*states))
+    result = {
+        "generic_states_per_second": 1.0 / t_generic,
+        "before_states_per_second": 1.0 / t_before,
+        "speedup_vs_before": t_before / t_generic,
+        "compile_seconds_first_call": compile_seconds,
+        "before_compile_seconds_first_call": compile_before,
+        "max_relative_difference_vs_before": float(
+            np.max(np.abs(ours - np.asarray(fn_before(*states)))) / np.max(np.abs(ours))
+        ),
+    }
+    compiled = mujoco_model(robot)
+    # serial, every coordinate actuated (τ = Q) and one MuJoCo joint per coordinate
+    if len(robot.actuated) == robot.dof == compiled.model.nv - 6:
+        data = mujoco.MjData(compiled.model)
+        qpos, qvel, qacc = compiled.state(*(a[:loop_count] for a in states))
+        reference = np.empty((loop_count, robot.dof))
+        for k in range(loop_count):
+            data.qpos[:], data.qvel[:], data.qacc[:] = qpos[k], qvel[k], qacc[k]
+            mujoco.mj_inverse(compiled.model, data)
+            reference[k] = data.qfrc_inverse[6:]  # after the base's 6 dofs
+        difference = np.max(np.abs(ours[:loop_count] - reference)) / np.max(np.abs(reference))
+        result["max_relative_difference_vs_mujoco"] = float(difference)
+    return result
+
+
 def bench_robot(name: str, count: int, loop_count: int, mjx_count: int, chunk: int) -> dict:
     robot, motion = robot_and_motion(name)
     states = tiled_states(motion, count)
@@ -146,6 +194,7 @@ def bench_robot(name: str, count: int, loop_count: int, mjx_count: int, chunk: i
             lambda *s: jax.lax.map(lambda x: generic(*x), s, batch_size=chunk), states, count
         ),
         "gradient": gradient_cost(robot, motion),
+        "torques": torque_cost(robot, states, chunk, loop_count),
     }
     if name == "planar_2r":
         closed = closed_form_2r(robot)

@@ -98,6 +98,35 @@ def test_structural_and_fallback_primitives():
     check_grads(jax.jit(straight_line(mixed)), (x[1], y[1]), order=1, modes=["rev"])
 
 
+def several(x, y):
+    """``split`` and ``unstack`` (several results each), as the transposes of a
+    ``concatenate`` and a ``stack`` in a ``vjp`` (the actuator torques' projection)."""
+    first, rest = jnp.split(x, [1])
+    rows = jnp.unstack(jnp.outer(x, y))
+    _, pull = jax.vjp(lambda v: jnp.stack([jnp.concatenate([v, v**2]), jnp.sin(v).repeat(2)]), y)
+    return jnp.concatenate(
+        [first * rest[0], rest, *rows, pull(jnp.outer(x[:2], jnp.concatenate([x, x])))[0]]
+    )
+
+
+def test_split_and_unstack_stay_scalar_code(monkeypatch):
+    """Rewritten as scalars, not evaluated on re-assembled arrays (which broke the
+    replay of the torques' projection into array kernels: 2R torques ~60× slower)."""
+    from jaxbal._src import straight_line as module
+
+    fallbacks = []
+    original = module._fallback
+    monkeypatch.setattr(
+        module, "_fallback", lambda eqn, args: fallbacks.append(eqn) or original(eqn, args)
+    )
+    rng = np.random.default_rng(1)
+    x, y = (jnp.asarray(rng.uniform(-1, 1, (6, 3))) for _ in range(2))
+    expected = jax.jit(jax.vmap(several))(x, y)
+    actual = jax.jit(jax.vmap(straight_line(several)))(x, y)
+    np.testing.assert_allclose(actual, expected, rtol=1e-14, atol=1e-14)
+    assert not fallbacks, [e.primitive.name for e in fallbacks]
+
+
 def test_reductions_over_empty_axes_give_the_identity():
     """jnp.all/any/sum/prod/max/min over zero elements (an MJCF robot without loops or
     parameters to check) equal XLA's own result, as in the plain evaluation."""

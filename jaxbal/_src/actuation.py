@@ -19,7 +19,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.dynamics import inverse_dynamics
+from jaxbal._src.dynamics import _inverse_dynamics
 from jaxbal._src.momentum import checked_finite
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Coordinates, Float, Vec3
@@ -57,7 +57,13 @@ def actuator_torques(
             not finite (a singular configuration of a parallel robot); eagerly, or at
             run time under ``jit``.
     """
-    forces = inverse_dynamics(robot, q, qd, qdd, gravity)
+    return _actuator_torques(robot, q, qd, qdd, gravity)
+
+
+def _actuator_torques(robot: Robot, q, qd, qdd, gravity, formulation=None) -> Float[Array, " a"]:
+    """:func:`actuator_torques`, the generalised forces by ``formulation`` (see
+    :func:`jaxbal._src.dynamics._inverse_dynamics`)."""
+    forces = _inverse_dynamics(robot, q, qd, qdd, gravity, formulation)
     actuated = np.asarray(robot.actuated)
     if jax.eval_shape(robot.constraint, q).shape[0] == 0:
         return forces[actuated]

@@ -15,8 +15,9 @@ with ``v_i = J_v,i q̇``, ``ω_i = J_ω,i q̇`` (COM and angular velocities, bas
 ``jax.vjp`` in ``q̇`` (the velocities are linear in ``q̇``): no second derivative of
 ``T``, about half the compile time of differentiating ``T`` twice (measured on the
 2-core CPU: the 2R 3.6 → 1.8 s, the DUAL-V's 11 coordinates 5.5 → 3.0 s) and
-1.1–1.7× faster. Nothing is robot-specific. Parallel robots reduce these generalised
-forces to their actuators with their loop-closure Jacobians
+1.1–1.7× faster; traced, it is replayed as straight-line scalar code like the shaking
+wrench (``_straight_kane_forces``). Nothing is robot-specific. Parallel robots reduce
+these generalised forces to their actuators with their loop-closure Jacobians
 (:func:`jaxbal.actuator_torques`). The two forms agree for rigid body frames; a closed
 chain whose frames are rotations only on its loops (the Orthoglide's parallelograms,
 built from the dependent coordinates) gets generalised forces that differ in the
@@ -35,6 +36,7 @@ import jax.numpy as jnp
 
 from jaxbal._src.linalg import cross, matvec, rmatvec
 from jaxbal._src.momentum import (
+    _REPLAY,
     body_com_positions,
     body_velocities,
     checked_bodies,
@@ -43,6 +45,7 @@ from jaxbal._src.momentum import (
     checked_state,
 )
 from jaxbal._src.robot import Robot
+from jaxbal._src.straight_line import straight_line
 from jaxbal._src.types import Array, Coordinates, Float, Scalar, Vec3
 from jaxbal._src.validation import check_shape
 
@@ -91,8 +94,17 @@ def inverse_dynamics(
         Lagrange's equations of the second kind; Khalil & Dombre (2002); evaluated in
         Kane's form (module doc).
     """
+    return _inverse_dynamics(robot, q, qd, qdd, gravity)
+
+
+def _inverse_dynamics(robot: Robot, q, qd, qdd, gravity, formulation=None) -> Coordinates:
+    """:func:`inverse_dynamics` with its checks, the forces from ``formulation(robot, q, q̇,
+    q̈, gravity)`` (default Kane's form; :func:`lagrange_forces` is the benchmark's
+    "before")."""
     q, qd, qdd = checked_state(robot, q, qd, qdd)
-    tau = _kane_forces(robot, q, qd, qdd, gravity)
+    if formulation is None:
+        formulation = _straight_kane_forces if _REPLAY[0] else _kane_forces
+    tau = formulation(robot, q, qd, qdd, gravity)
     tau = checked_parameters(robot, checked_bodies(robot, tau))
     return checked_finite("generalised forces", robot, tau)
 
@@ -118,6 +130,13 @@ def _kane_forces(robot: Robot, q, qd, qdd, gravity) -> Coordinates:
     moment = world_inertia_times(alpha) + cross(omega, world_inertia_times(omega))
     _, project = jax.vjp(lambda qd_: velocities(q, qd_)[0], qd)  # (f, n) -> Jᵀ(f, n)
     return project((force, moment))[0]
+
+
+# Replayed as straight-line scalar code under jit/vmap/grad, as the shaking wrench
+# (momentum.replayed switches both): measured on the 2-core CPU, 20,000 states of the
+# 2R 7.2 → 0.12 µs each and the first compile 1.4 → 0.3 s; the DUAL-V's 11
+# coordinates 39 → 0.5 µs, 2.5 → 1.6 s.
+_straight_kane_forces = straight_line(_kane_forces)
 
 
 def lagrange_forces(robot: Robot, q, qd, qdd, gravity=None) -> Coordinates:

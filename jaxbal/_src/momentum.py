@@ -286,8 +286,10 @@ _REPLAY = [True]
 
 @contextlib.contextmanager
 def replayed(enabled: bool):
-    """Context manager: whether :func:`shaking_wrench` traced inside the block is
-    replayed as straight-line code (:mod:`jaxbal._src.straight_line`; default on).
+    """Context manager: whether :func:`shaking_wrench` and the generalised forces of
+    :func:`jaxbal.inverse_dynamics` (so :func:`jaxbal.actuator_torques`) traced inside
+    the block are replayed as straight-line code (:mod:`jaxbal._src.straight_line`;
+    default on).
 
     The replay makes the compiled wrench about as fast as a hand-written closed form
     (sweeps, throughput), but generating it adds trace time and its many scalar

@@ -263,7 +263,8 @@ def _broadcast(eqn, operand):
 
 
 def structural(eqn, args):
-    """Shape-only primitives on object arrays; ``None`` when not handled here."""
+    """Shape-only primitives on object arrays (a list of them for the primitives with
+    several results, ``split`` and ``unstack``); ``None`` when not handled here."""
     name, p = eqn.primitive.name, eqn.params
     x = args[0] if args else None
     if name == "broadcast_in_dim":
@@ -285,6 +286,12 @@ def structural(eqn, args):
         return np.concatenate(args, axis=p["dimension"])
     if name == "stack":
         return np.stack(args, axis=p["axis"])
+    if name == "split":  # several results (the transpose of a concatenate)
+        bounds = np.cumsum([int(n) for n in p["sizes"]])[:-1]
+        return list(np.split(x, bounds, axis=p["axis"]))
+    if name == "unstack":  # several results (the transpose of a stack)
+        rows = np.moveaxis(x, p["axis"], 0)  # sliced, not indexed: 0-d arrays stay arrays
+        return [rows[i : i + 1].reshape(rows.shape[1:]) for i in range(rows.shape[0])]
     if name == "rev":
         return np.flip(x, axis=tuple(p["dimensions"])) if p["dimensions"] else x
     if name == "pad":

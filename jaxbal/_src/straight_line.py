@@ -82,7 +82,8 @@ def evaluate(jaxpr, consts, args) -> list[np.ndarray]:
             outs = evaluate(closed.jaxpr, closed.consts, args_)
         else:
             result = structural(eqn, args_)
-            outs = None if result is None else [result]
+            several = eqn.primitive.multiple_results
+            outs = None if result is None else (result if several else [result])
         if outs is None:
             outs = _fallback(eqn, args_)
         for var, value in zip(eqn.outvars, outs, strict=True):
