@@ -124,6 +124,23 @@ def bench_block(result: dict) -> str:
             f"{TARGETS['generic_over_closed_form_time']}); agreement with MuJoCo C "
             f"{two['max_relative_difference_vs_mujoco']:.1e} (relative).",
         ]
+    torques = {n: r["torques"] for n, r in result["robots"].items() if "torques" in r}
+    if torques:
+        lines += [
+            "",
+            "| robot | actuator torques [states/s], 1 device | × before (Lagrange) "
+            "| first call [s] | before [s] | rel. diff. vs before | vs MuJoCo C |",
+            "|---|---:|---:|---:|---:|---:|---:|",
+        ]
+        for name, t in torques.items():
+            mujoco = t.get("max_relative_difference_vs_mujoco")
+            lines.append(
+                f"| {name} | {t['generic_states_per_second']:.3g} | "
+                f"{t['speedup_vs_before']:.1f} | {t['compile_seconds_first_call']:.2f} | "
+                f"{t['before_compile_seconds_first_call']:.2f} | "
+                f"{t['max_relative_difference_vs_before']:.1e} | "
+                f"{'—' if mujoco is None else f'{mujoco:.1e}'} |"
+            )
     lines += [
         "",
         "| first call in a fresh process [s] | grad, cold | grad, warm cache | co-design, cold "

@@ -25,6 +25,9 @@ def test_stored_result_covers_the_five_robots_and_agrees_with_mujoco():
     assert set(result["robots"]) == {"planar_2r", "planar_3r", "scara", "dual_v", "orthoglide"}
     for name, robot in result["robots"].items():
         assert robot["max_relative_difference_vs_mujoco"] < 1e-9, name
+        torques = robot["torques"]  # the two formulations agree, and with MuJoCo C
+        assert torques["max_relative_difference_vs_before"] < 1e-12, name
+        assert torques.get("max_relative_difference_vs_mujoco", 0.0) < 1e-9, name
 
 
 def test_stored_sweep_covers_the_issue_size_agrees_with_the_loops_and_states_its_targets():

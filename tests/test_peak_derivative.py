@@ -43,13 +43,14 @@ def _objective(metric, robot, motion):
     return jax.jit(lambda design: metric(robot.with_design(design), motion))
 
 
+SLOW = pytest.mark.slow  # make test-all: each metric and robot stays in make test
 PAIRS = [
     ("planar_2r", peak_force),
     ("planar_2r", peak_moment),
     ("planar_2r", peak_torque),
     ("dual_v", peak_force),
-    ("dual_v", peak_torque),
-    ("orthoglide", peak_force),
+    pytest.param("dual_v", peak_torque, marks=SLOW),
+    pytest.param("orthoglide", peak_force, marks=SLOW),
     ("orthoglide", peak_moment),
 ]
 
@@ -73,7 +74,11 @@ def test_gradient_equals_reverse_mode_through_every_sample(name, metric):
         np.testing.assert_allclose(g_new[key], g_old[key], rtol=0, atol=1e-10 * scale, err_msg=key)
 
 
-@pytest.mark.parametrize("metric", [peak_force, peak_moment, peak_torque], ids=lambda f: f.__name__)
+@pytest.mark.parametrize(
+    "metric",
+    [peak_force, pytest.param(peak_moment, marks=SLOW), pytest.param(peak_torque, marks=SLOW)],
+    ids=lambda f: getattr(f, "__name__", f),
+)
 def test_derivatives_equal_finite_differences(metric):
     """First and second derivatives, forward and reverse, against central differences
     (``check_grads``) in the payload and the counter-masses of the 2R."""
@@ -101,8 +106,8 @@ def test_gradient_through_the_motion():
 
     g_new, g_old = scaled(peak_force)(1.3), scaled(ALL_SAMPLES[peak_force])(1.3)
     np.testing.assert_allclose(float(g_new), float(g_old), rtol=1e-10)
-    check_grads(lambda k: peak_force(robot, motion._replace(qdd=k * motion.qdd)), (1.3,),
-                order=1, modes=("fwd", "rev"), eps=1e-5, rtol=1e-6)  # fmt: skip
+    check_grads(jax.jit(lambda k: peak_force(robot, motion._replace(qdd=k * motion.qdd))),
+                (1.3,), order=1, modes=("fwd", "rev"), eps=1e-5, rtol=1e-6)  # fmt: skip
 
 
 def test_exact_tie_gives_the_derivative_at_one_peak_sample():
@@ -127,6 +132,7 @@ def test_vmap_over_designs_equals_a_loop():
         return peak_force(robot.with_design({"payload": p}), motion)
 
     vg = jax.jit(jax.vmap(jax.value_and_grad(f)))(payloads)
-    loop = [jax.jit(jax.value_and_grad(f))(p) for p in payloads]
+    one = jax.jit(jax.value_and_grad(f))  # compiled once for the loop
+    loop = [one(p) for p in payloads]
     np.testing.assert_allclose(vg[0], [float(v) for v, _ in loop], rtol=1e-12)
     np.testing.assert_allclose(vg[1], [float(g) for _, g in loop], rtol=1e-10)

@@ -40,13 +40,13 @@ from __future__ import annotations
 from collections.abc import Callable
 from functools import partial
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.custom_derivatives import SymbolicZero
 
 from jaxbal._src.actuation import actuator_torques
+from jaxbal._src.along_motion import batched, samples
 from jaxbal._src.linalg import matvec
 from jaxbal._src.momentum import (
     body_com_poses,
@@ -60,13 +60,7 @@ from jaxbal._src.motion_samples import JerkMotion, Motion, as_motion, motion_sam
 from jaxbal._src.planning import peak_norm
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Float, Scalar
-from jaxbal._src.validation import (
-    guard,
-    is_traced,
-    raise_if_invalid,
-    runtime_checks,
-    runtime_checks_enabled,
-)
+from jaxbal._src.validation import guard, is_traced, runtime_checks
 
 __all__ = [
     "ADDED_MASS_VARIABLES",
@@ -103,56 +97,12 @@ ADDED_MASS_VARIABLES = ("counter_mass", "vertical_counterweight")
 # --- metrics -----------------------------------------------------------------------------
 
 
-def _batched(evaluate, robot: Robot, motion: Motion, what: str, jerk: bool = False, run=None):
-    """``evaluate(robot, q, qd, qdd)`` at every sample of the motion (``vmap``);
-    ``evaluate(robot, q, qd, qdd, qddd)`` with ``jerk`` (``motion`` a JerkMotion);
-    ``run(evaluate, robot, motion)`` evaluates the samples (default :func:`_samples`;
-    e.g. a compiled program keyed on :func:`~jaxbal.runtime_checks` being on or off).
-
-    An eager call checks the values first and raises ``ValueError``: inside ``vmap`` the
-    runtime checks would surface as a JAX-internal callback error (``INTERNAL:
-    CpuCallback error``) instead of naming the offending value.
-    """
-    motion = motion if jerk else as_motion(motion)
-    if is_traced(robot, motion):
-        return (_samples if run is None else run)(evaluate, robot, motion)
-    run = _compiled_samples if run is None else run
-    checked_parameters(robot, checked_bodies(robot, None))
-    finite = jnp.all(jnp.isfinite(jnp.concatenate(motion, axis=-1)), axis=-1)
-    raise_if_invalid(finite, "non-finite state (q, qd, qdd) in the motion at samples",
-                     jnp.arange(finite.shape[0]))  # fmt: skip
-    with runtime_checks(False):  # checked above and below, eagerly
-        out = run(evaluate, robot, motion)
-    return checked_finite(what, robot, out)
-
-
-def _samples(evaluate, robot: Robot, motion):
-    """``evaluate(robot, *state)`` at every sample of the motion (``vmap``, unchecked)."""
-    return jax.vmap(lambda *state: evaluate(robot, *state))(*motion)
-
-
-@eqx.filter_jit
-def _samples_program(evaluate, robot: Robot, motion, checks: bool):
-    """:func:`_samples` compiled once per ``evaluate``, robot structure, motion length and
-    ``checks`` (static: the runtime value checks on or off while tracing, so that each
-    setting has its own program)."""
-    with runtime_checks(checks):
-        return _samples(evaluate, robot, motion)
-
-
-def _compiled_samples(evaluate, robot: Robot, motion):
-    """:func:`_samples` as one compiled program: an eager call (a notebook's
-    ``peak_torque(robot, motion)``) ran the ``vmap`` operation by operation, ~20 s for
-    the DUAL-V's torques along 24 samples instead of ~0.5 s compiled."""
-    return _samples_program(evaluate, robot, motion, runtime_checks_enabled())
-
-
 def _wrench(robot: Robot, motion: Motion):
-    return _batched(shaking_wrench, robot, motion, "shaking wrench")
+    return batched(shaking_wrench, robot, motion, "shaking wrench")
 
 
 def _torques(robot: Robot, motion: Motion):
-    return _batched(actuator_torques, robot, motion, "actuator torques")
+    return batched(actuator_torques, robot, motion, "actuator torques")
 
 
 def _unit_scale(vectors):
@@ -186,12 +136,12 @@ def _peak(evaluate, pick, robot: Robot, motion: Motion, what: str) -> Scalar:
     """
     motion = as_motion(motion)
     if not is_traced(robot, motion):
-        return peak_norm(pick(_batched(evaluate, robot, motion, what)))
+        return peak_norm(pick(batched(evaluate, robot, motion, what)))
     return _peak_traced(evaluate, pick, robot, motion)
 
 
 def _all_samples(evaluate, pick, robot, motion):
-    return pick(_samples(evaluate, robot, motion))
+    return pick(samples(evaluate, robot, motion))
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 1))
@@ -303,7 +253,7 @@ def peak_torque_rate(robot: Robot, motion: JerkMotion) -> Scalar:
             "peak_torque_rate needs the jerk: give a JerkMotion (motion_samples(..., "
             f"order=3) or a motion factory with order=3), got {type(motion).__name__}"
         )
-    rates = _batched(torque_rate, robot, motion, "actuator torque rates", jerk=True)
+    rates = batched(torque_rate, robot, motion, "actuator torque rates", jerk=True)
     return jnp.max(jnp.abs(rates))
 
 

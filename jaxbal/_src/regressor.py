@@ -54,8 +54,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._src.along_motion import batched
 from jaxbal._src.linalg import cos_sin, matmul_transposed, vee
-from jaxbal._src.metrics import Motion, _batched
+from jaxbal._src.metrics import Motion
 from jaxbal._src.momentum import (
     checked_bodies,
     checked_finite,
@@ -254,7 +255,7 @@ def linear_wrench(robot: Robot, motion) -> LinearWrench:
     :class:`~jaxbal.design.Motion` or ``(q, q̇, q̈)`` of ``(t, dof)``), compiled once
     per robot structure and motion length; eagerly the robot and motion are checked by
     name first, as the metrics' (a NaN length, a negative mass, a non-finite state)."""
-    force, moment = _batched(wrench_regressor, robot, motion, "wrench regressor", run=_compiled)
+    force, moment = batched(wrench_regressor, robot, motion, "wrench regressor", run=_compiled)
     return LinearWrench(force, moment, parameter_names(robot))
 
 

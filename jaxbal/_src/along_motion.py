@@ -1,0 +1,68 @@
+"""A one-state function evaluated at every sample of a motion (``vmap``), checked.
+
+:func:`batched` is what the metrics (:mod:`jaxbal._src.metrics`) and the wrench
+regressor run: traced (under ``jit``/``grad``) a plain ``vmap``; eagerly, the robot and
+the states are checked by name first and the samples run as one compiled program.
+"""
+
+from __future__ import annotations
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from jaxbal._src.momentum import checked_bodies, checked_finite, checked_parameters
+from jaxbal._src.motion_samples import Motion, as_motion
+from jaxbal._src.robot import Robot
+from jaxbal._src.validation import (
+    is_traced,
+    raise_if_invalid,
+    runtime_checks,
+    runtime_checks_enabled,
+)
+
+
+def batched(evaluate, robot: Robot, motion: Motion, what: str, jerk: bool = False, run=None):
+    """``evaluate(robot, q, qd, qdd)`` at every sample of the motion (``vmap``);
+    ``evaluate(robot, q, qd, qdd, qddd)`` with ``jerk`` (``motion`` a JerkMotion);
+    ``run(evaluate, robot, motion)`` evaluates the samples (default: traced
+    :func:`samples`, eagerly :func:`compiled_samples`; e.g. the regressor's compiled
+    program keyed on :func:`~jaxbal.runtime_checks` being on or off).
+
+    An eager call checks the values first and raises ``ValueError``: inside ``vmap`` the
+    runtime checks would surface as a JAX-internal callback error (``INTERNAL:
+    CpuCallback error``) instead of naming the offending value.
+    """
+    motion = motion if jerk else as_motion(motion)
+    if is_traced(robot, motion):
+        return (samples if run is None else run)(evaluate, robot, motion)
+    run = compiled_samples if run is None else run
+    checked_parameters(robot, checked_bodies(robot, None))
+    finite = jnp.all(jnp.isfinite(jnp.concatenate(motion, axis=-1)), axis=-1)
+    raise_if_invalid(finite, "non-finite state (q, qd, qdd) in the motion at samples",
+                     jnp.arange(finite.shape[0]))  # fmt: skip
+    with runtime_checks(False):  # checked above and below, eagerly
+        out = run(evaluate, robot, motion)
+    return checked_finite(what, robot, out)
+
+
+def samples(evaluate, robot: Robot, motion):
+    """``evaluate(robot, *state)`` at every sample of the motion (``vmap``, unchecked)."""
+    return jax.vmap(lambda *state: evaluate(robot, *state))(*motion)
+
+
+@eqx.filter_jit
+def _program(evaluate, robot: Robot, motion, checks: bool):
+    """:func:`samples` compiled once per ``evaluate``, robot structure, motion length and
+    ``checks`` (static: the runtime value checks on or off while tracing, so that each
+    setting has its own program)."""
+    with runtime_checks(checks):
+        return samples(evaluate, robot, motion)
+
+
+def compiled_samples(evaluate, robot: Robot, motion):
+    """:func:`samples` as one compiled program: an eager call (a notebook's
+    ``peak_torque(robot, motion)``) ran the ``vmap`` operation by operation, measured on
+    the 2-core CPU, the DUAL-V's peak torque along 24 samples 21 s, now ~7 s cold
+    (compiling) and 0.01 s warm."""
+    return _program(evaluate, robot, motion, runtime_checks_enabled())
