@@ -34,7 +34,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from jaxbal._src.linalg import cross, matvec, rmatvec
+from jaxbal._src.linalg import cross, matvec, rmatvec, world_inertia_times
 from jaxbal._src.momentum import (
     _REPLAY,
     body_com_positions,
@@ -123,11 +123,9 @@ def _kane_forces(robot: Robot, q, qd, qdd, gravity) -> Coordinates:
         check_shape("gravity", g, (3,))
         accel = accel - g
 
-    def world_inertia_times(x):  # R_i I_i R_iᵀ x_i, as three matrix-vector products
-        return matvec(rotations, matvec(bodies.inertia, rmatvec(rotations, x)))
-
     force = bodies.mass[:, None] * accel
-    moment = world_inertia_times(alpha) + cross(omega, world_inertia_times(omega))
+    spin_rate = world_inertia_times(rotations, bodies.inertia, alpha)
+    moment = spin_rate + cross(omega, world_inertia_times(rotations, bodies.inertia, omega))
     _, project = jax.vjp(lambda qd_: velocities(q, qd_)[0], qd)  # (f, n) -> Jᵀ(f, n)
     return project((force, moment))[0]
 

@@ -21,6 +21,12 @@ def rmatvec(matrix, vector):
     return jnp.sum(matrix * vector[..., :, None], axis=-2)
 
 
+def world_inertia_times(rotations, inertia, vectors):
+    """``R_i I_i R_iᵀ v_i`` for every body ``i`` (body-frame inertias ``(n, 3, 3)``
+    rotated to the base frame), as three matrix-vector products."""
+    return matvec(rotations, matvec(inertia, rmatvec(rotations, vectors)))
+
+
 def matmul_transposed(a, b):
     """``a @ bᵀ`` for ``(..., 3, 3)`` blocks."""
     return jnp.sum(a[..., :, None, :] * b[..., None, :, :], axis=-1)

@@ -24,7 +24,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.linalg import cross, matmul_transposed, matvec, rmatvec, vee, weighted_sum
+from jaxbal._src.linalg import (
+    cross,
+    matmul_transposed,
+    matvec,
+    vee,
+    weighted_sum,
+    world_inertia_times,
+)
 from jaxbal._src.planar import PlanarRobot, planar_inertial_wrench
 from jaxbal._src.robot import Robot
 from jaxbal._src.straight_line import straight_line
@@ -218,8 +225,7 @@ def momentum(robot: Robot, q: Coordinates, qd: Coordinates) -> tuple[Vec3, Vec3]
     bodies = robot.mass_properties()
     positions, rotations, velocities, omega = body_velocities(robot, q, qd)
     linear = weighted_sum(bodies.mass, velocities)
-    # R I Rᵀ ω, as three matrix-vector products.
-    spin = matvec(rotations, matvec(bodies.inertia, rmatvec(rotations, omega)))
+    spin = world_inertia_times(rotations, bodies.inertia, omega)  # R I Rᵀ ω
     orbital = weighted_sum(bodies.mass, cross(positions, velocities))
     return linear, orbital + jnp.sum(spin, axis=0)
 
