@@ -15,3 +15,12 @@ import jax  # noqa: E402
 import jaxbal  # noqa: E402, F401  (enables float64)
 
 jax.config.update("jax_enable_x64", True)
+
+
+def slow_for(values, *slow):
+    """``values`` for ``pytest.mark.parametrize``, those in ``slow`` marked for
+    ``make test-all`` (long compiles whose check another case already makes in
+    ``make test``)."""
+    import pytest
+
+    return [pytest.param(v, marks=pytest.mark.slow) if v in slow else v for v in values]

@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import slow_for
 from test_contract import CASES, _motion
 
 import jaxbal
@@ -47,7 +48,8 @@ def _gross(y, pi):
     return float(np.max(np.abs(np.asarray(y)) @ np.abs(pi)))
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
+# a serial and a closed-chain robot here; the others in make test-all
+@pytest.mark.parametrize("name", slow_for(sorted(CASES), "orthoglide", "planar_3r", "scara"))
 def test_linear_wrench_equals_shaking_wrench(name):
     """Newton–Euler on the frames (Y π) equals the momentum derivative of
     shaking_wrench on every robot, closed chains included."""

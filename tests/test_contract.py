@@ -11,6 +11,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import slow_for
 
 import jaxbal
 from jaxbal import robots
@@ -31,11 +32,6 @@ CASES = {
     ),
 }
 DURATION = 0.2
-
-
-def _slow_for(cases, *slow):
-    """The case names, those in ``slow`` marked for make test-all (long compiles)."""
-    return [pytest.param(n, marks=pytest.mark.slow) if n in slow else n for n in sorted(cases)]
 
 
 def _motion(name):
@@ -101,7 +97,8 @@ def test_ik_round_trip_and_branch_validation(name):
             robot.inverse_kinematics(pose, branch=bad)
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
+# the closed chains: test_mujoco_closure.py (MuJoCo closes their loops itself)
+@pytest.mark.parametrize("name", slow_for(sorted(CASES), "dual_v", "orthoglide"))
 def test_shaking_wrench_confirmed_by_mujoco(name):
     """Generic joint motion + shaking wrench vs MuJoCo C mj_inverse (1e-9 relative)."""
     robot, path = _motion(name)
@@ -112,7 +109,7 @@ def test_shaking_wrench_confirmed_by_mujoco(name):
     assert check.relative < 1e-9, check
 
 
-@pytest.mark.parametrize("name", _slow_for(CASES, "dual_v", "scara", "orthoglide"))
+@pytest.mark.parametrize("name", slow_for(sorted(CASES), "dual_v", "scara", "orthoglide"))
 def test_com_line_on_every_robot(name):
     """The COM plan moves the total COM on the straight line (1e-9 m) for every robot,
     with exact derivatives (velocity vs central differences of the position, 1e-6)."""
@@ -248,7 +245,7 @@ def motions():
     return out
 
 
-@pytest.mark.parametrize("name", _slow_for(CASES, "dual_v", "orthoglide", "scara"))
+@pytest.mark.parametrize("name", slow_for(sorted(CASES), "dual_v", "orthoglide", "scara"))
 def test_codesign_reduces_peak_force_and_payload_sensitivity_matches_fd(name, motions):
     """Generic co-design of the counter-masses lowers the peak shaking force of the move
     on every robot; the payload sensitivity of the RMS force equals central finite

@@ -319,6 +319,7 @@ def test_compiled_codesign_has_no_callbacks(motion_2r):
     assert "sine" in text  # the program does contain the dynamics
 
 
+@pytest.mark.slow
 def test_start_at_the_lower_bounds_leaves_them():
     """DUAL-V without counter-masses (every mass and distance at its lower bound, where
     the bound map's gradient vanishes): the default co-design leaves the bounds (the

@@ -203,7 +203,7 @@ def _three_torques(robot):
     return q, tau_paper, tau_vw, same_split
 
 
-@pytest.mark.parametrize("balanced", [True, False])
+@pytest.mark.parametrize("balanced", [pytest.param(True, marks=pytest.mark.slow), False])
 def test_paper_torques_match_virtual_work(balanced):
     """Eqs (3)-(29) vs Lagrange over all bodies (autodiff): same platform effect
     Jᵀτ, the minimum-norm part equals the virtual-work torques, and Lagrange on the

@@ -155,6 +155,7 @@ SWEEP_MOTION = jaxbal.design.motion_samples(
 _PEAK = eqx.filter_jit(jaxbal.design.METRICS["peak_force"])
 
 
+@pytest.mark.slow
 @given(payloads=st.lists(hostile, min_size=2, max_size=2), masses=hostile)
 def test_sweep_hostile_axis_values(payloads, masses):
     """A sweep raises naming the axis (non-finite values, below the design bound) or the

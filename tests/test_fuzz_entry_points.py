@@ -340,10 +340,10 @@ def test_huge_force_does_not_overflow_in_the_norm_regression():
     "name, field",
     [
         ("planar_2r", "lengths"),
-        ("scara", "lengths"),
+        pytest.param("scara", "lengths", marks=pytest.mark.slow),
         ("dual_v", "l2"),
         ("dual_v", "a"),
-        ("orthoglide", "length"),
+        pytest.param("orthoglide", "length", marks=pytest.mark.slow),
     ],
 )
 def test_negative_geometry_through_tree_at_is_refused(name, field):

@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import slow_for
 from test_contract import DURATION, _motion
 from test_mjcf_robot import _mechanism, _random_states, _template
 
@@ -39,12 +40,8 @@ def _compare(robot, q, qd, qdd):
     np.testing.assert_allclose(kane, lagrange, rtol=0, atol=1e-11 * scale)
 
 
-def _slow(names, *slow):
-    return [pytest.param(n, marks=pytest.mark.slow) if n in slow else n for n in names]
-
-
 # the 3R and the SCARA (serial, like the 2R and the MJCF mechanisms) in make test-all
-@pytest.mark.parametrize("name", _slow(sorted(robots.ROBOTS), "planar_3r", "scara"))
+@pytest.mark.parametrize("name", slow_for(sorted(robots.ROBOTS), "planar_3r", "scara", "dual_v"))
 def test_kane_equals_lagrange_on_every_robot(name):
     """Each robot (the closed chains' generalised forces reduced by their loop
     closures) at poses along the contract's line with random rates."""
@@ -55,7 +52,7 @@ def test_kane_equals_lagrange_on_every_robot(name):
     _compare(robot, q, qd, qdd)
 
 
-@pytest.mark.parametrize("seed", _slow([0, 1, 2], 1, 2))
+@pytest.mark.parametrize("seed", slow_for([0, 1, 2], 1, 2))
 def test_kane_equals_lagrange_on_random_spatial_mechanisms(seed):
     """Random MJCF trees of 5 hinge/slide joints with rotated full inertias."""
     rng = np.random.default_rng(seed)

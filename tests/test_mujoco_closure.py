@@ -61,6 +61,7 @@ def test_mujoco_velocities_match_finite_differences_of_its_positions():
     np.testing.assert_allclose(central[6:], qvel[1][6:], atol=1e-6 * scale)
 
 
+@pytest.mark.slow
 def test_another_assembly_mode_is_not_confirmed():
     """MuJoCo finds its own assembly mode, not jaxbal's: jaxbal's CROSSED DUAL-V and an
     Orthoglide leg with s = −1 are refused (their joints differ from MuJoCo's by ~1, the

@@ -28,6 +28,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import slow_for
 from jax.test_util import check_grads
 
 import jaxbal
@@ -169,10 +170,7 @@ def _physics(robot, design, q, qd, qdd):
 
 
 #: the parallel robots' physics gradients compile for ~25 s each: make test-all
-_PHYSICS = [
-    pytest.param(n, marks=pytest.mark.slow) if n in ("dual_v", "orthoglide") else n
-    for n in sorted(CASES)
-]
+_PHYSICS = slow_for(sorted(CASES), "dual_v", "orthoglide", "planar_3r", "scara")
 
 
 @pytest.mark.parametrize("name", _PHYSICS)

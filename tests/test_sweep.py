@@ -217,6 +217,7 @@ def test_existing_store_needs_resume_and_the_same_sweep(arm, tmp_path):
     np.testing.assert_array_equal(again["value"].values, jaxbal.sweep.open_sweep(path)["value"])
 
 
+@pytest.mark.slow
 def test_two_host_devices_equal_plain_vmap_bit_for_bit():
     result = _json(
         _child(

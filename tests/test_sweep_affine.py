@@ -92,6 +92,7 @@ def test_linear_true_needs_a_named_wrench_metric_and_a_fixed_motion(arm):
         jaxbal.sweep("peak_force", robot, motion, AXES, progress=False, linear="yes")
 
 
+@pytest.mark.slow
 def test_huge_masses_do_not_overflow(arm):
     """Payloads up to 1e160 kg: forces of ~1e162 N whose squares would overflow are
     scaled by a power of two, as the direct metric scales them."""

@@ -99,6 +99,7 @@ def test_unknown_backend_and_missing_store_exit_2(tmp_path):
     assert missing.exit_code == 2 and "no sweep store" in missing.output
 
 
+@pytest.mark.slow
 def test_linear_key_reaches_the_sweep(tmp_path):
     """``linear`` in the spec: one named wrench metric is affine by default, not with
     ``linear = false``."""
