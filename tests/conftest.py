@@ -11,6 +11,7 @@ import os
 os.environ["JAXBAL_CACHE_DIR"] = "off"
 
 import jax  # noqa: E402
+import pytest  # noqa: E402
 
 import jaxbal  # noqa: E402, F401  (enables float64)
 
@@ -21,6 +22,4 @@ def slow_for(values, *slow):
     """``values`` for ``pytest.mark.parametrize``, those in ``slow`` marked for
     ``make test-all`` (long compiles whose check another case already makes in
     ``make test``)."""
-    import pytest
-
     return [pytest.param(v, marks=pytest.mark.slow) if v in slow else v for v in values]

@@ -40,7 +40,8 @@ def _compare(robot, q, qd, qdd):
     np.testing.assert_allclose(kane, lagrange, rtol=0, atol=1e-11 * scale)
 
 
-# the 3R and the SCARA (serial, like the 2R and the MJCF mechanisms) in make test-all
+# the 3R and the SCARA (serial, like the 2R and the MJCF mechanisms) and the DUAL-V (a
+# closed chain, like the Orthoglide) in make test-all
 @pytest.mark.parametrize("name", slow_for(sorted(robots.ROBOTS), "planar_3r", "scara", "dual_v"))
 def test_kane_equals_lagrange_on_every_robot(name):
     """Each robot (the closed chains' generalised forces reduced by their loop

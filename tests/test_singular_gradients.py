@@ -169,7 +169,8 @@ def _physics(robot, design, q, qd, qdd):
     return jnp.sum(force**2) + jnp.sum(moment**2) + jnp.sum(torques**2)
 
 
-#: the parallel robots' physics gradients compile for ~25 s each: make test-all
+#: the parallel robots' physics gradients compile for ~25 s each, the 3R's and SCARA's
+#: repeat the 2R's check: make test-all
 _PHYSICS = slow_for(sorted(CASES), "dual_v", "orthoglide", "planar_3r", "scara")
 
 
