@@ -127,13 +127,19 @@ def _loss_and_values(params, robot: Robot, motion: Motion, problem: _Problem, at
     """:func:`_loss_of` at the parameters ``r``; with ``at_start`` (a traced bool) of
     ``robot`` as given (the scales are then placeholders)."""
     designed = robot.with_design(_to_design(params, problem))
+    return _loss_of(given_or(robot, designed, at_start), motion, problem)
+
+
+def given_or(robot: Robot, designed: Robot, at_start) -> Robot:
+    """``robot`` where ``at_start`` (a traced bool), else ``designed`` (same structure),
+    leaf by leaf: one program evaluates both the given start and the candidates."""
     dynamic, static = eqx.partition(robot, eqx.is_array)
     chosen = jax.tree_util.tree_map(
         lambda given, new: jnp.where(at_start, given, new),
         dynamic,
         eqx.filter(designed, eqx.is_array),
     )
-    return _loss_of(eqx.combine(chosen, static), motion, problem)
+    return eqx.combine(chosen, static)
 
 
 def _loss_grad(params, robot: Robot, motion: Motion, problem: _Problem, at_start):

@@ -26,6 +26,7 @@ References:
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
+from functools import partial
 from typing import Any, NamedTuple
 
 import equinox as eqx
@@ -34,8 +35,19 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.design import CONSTRAINT_PENALTY, FEASIBILITY_RTOL, _bounds, _objective_terms
-from jaxbal._src.design_loss import _combine, _floor, _Problem, _to_design, _to_params, _values
+from jaxbal._src.design_loss import (
+    _combine,
+    _floor,
+    _Problem,
+    _to_design,
+    _to_design_numpy,
+    _to_params,
+    _values,
+    given_or,
+)
+from jaxbal._src.lbfgs import lbfgs
 from jaxbal._src.metrics import Motion, check_design_names, metric_name, resolve_metric
+from jaxbal._src.momentum import replayed, robot_faulty
 from jaxbal._src.optimize import minimize
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
@@ -105,17 +117,44 @@ def _per_payload(robot, motion, theta, payloads, metrics):
     return jax.vmap(one)(payloads)
 
 
-def joint_loss(params, robot: Robot, motion: MotionFactory, joint: _Joint):
-    """Loss of :func:`joint_codesign` at the parameters (module level: cached loop)."""
+def _loss_values(candidate: Robot, theta, motion: MotionFactory, joint: _Joint):
+    """``(loss, (n_payloads, k) metric values)`` of a candidate robot and ``θ``: the
+    objective terms, then the constraint metrics."""
     problem = joint.design
-    candidate = robot.with_design(_to_design(params["design"], problem))
-    theta = _to_design(params["trajectory"], joint.trajectory)
     metrics = problem.terms + problem.constrained
     values = _per_payload(candidate, motion, theta, joint.payloads, metrics)
     n = len(problem.terms)
     objective = _aggregate(values[:, :n], problem.scales, joint.robust, joint.sharpness)
     constrained = jnp.max(values[:, n:], axis=0) if problem.constrained else None
-    return _combine(objective, constrained, problem)
+    return _combine(objective, constrained, problem), values
+
+
+def joint_loss(params, robot: Robot, motion: MotionFactory, joint: _Joint):
+    """Loss of :func:`joint_codesign` at the parameters (module level: cached loop)."""
+    candidate = robot.with_design(_to_design(params["design"], joint.design))
+    theta = _to_design(params["trajectory"], joint.trajectory)
+    return _loss_values(candidate, theta, motion, joint)[0]
+
+
+@eqx.filter_jit
+def _loss_grad(params, robot: Robot, motion: MotionFactory, joint: _Joint, given, at_start):
+    """Loss, gradient (a pytree like ``params``) and ``(n_payloads, k)`` metric values,
+    and whether the given robot is invalid (a mask): the one program the default joint
+    co-design compiles. With ``at_start`` (a traced bool) the values are those of the
+    given robot and ``θ = given`` (the scales are then placeholders). Runtime checks
+    are off while it is traced (line-search trials may be non-finite); the caller
+    raises eagerly."""
+
+    def loss(p):
+        designed = robot.with_design(_to_design(p["design"], joint.design))
+        theta = _to_design(p["trajectory"], joint.trajectory)
+        theta = {k: jnp.where(at_start, given[k], theta[k]) for k in theta}
+        return _loss_values(given_or(robot, designed, at_start), theta, motion, joint)
+
+    # no straight-line replay: traced once, evaluated tens of times (momentum.replayed)
+    with runtime_checks(False), replayed(False):
+        (value, values), grad = jax.value_and_grad(loss, has_aux=True)(params)
+    return value, grad, values, robot_faulty(robot)
 
 
 def payload_metrics(robot: Robot, motion: MotionFactory, trajectory, payloads, metrics: tuple):
@@ -129,9 +168,6 @@ def payload_metrics(robot: Robot, motion: MotionFactory, trajectory, payloads, m
 @eqx.filter_jit
 def _payload_metrics(robot, motion, trajectory, payloads, metrics):
     return _per_payload(robot, motion, trajectory, payloads, metrics)
-
-
-_loss = eqx.filter_jit(joint_loss)
 
 
 @eqx.filter_jit
@@ -225,70 +261,123 @@ def joint_codesign(
     theta0 = {k: jnp.asarray(v, float) for k, v in trajectory.items()}
     lows, highs, two_sided = _bounds(robot, free, lower, upper)
     everything = terms + tuple(m for m in constrained if m not in terms)
-    before = payload_metrics(robot, motion, theta0, payloads, everything)
-    floors = _floors(robot, motion, theta0, everything)
-    nominal = jnp.maximum(jnp.abs(jnp.mean(before, axis=0)), floors)
-    given = dict(scales or {})
-    term_scales = jnp.stack(
-        [jnp.maximum(given.get(metric_name(m), nominal[i]), floors[i]) for i, m in enumerate(terms)]
-    )
-    where = jnp.asarray([everything.index(m) for m in constrained], int)
-    problem = _Problem(
-        free, two_sided, terms, constrained, lows, highs, jnp.asarray(weights),
-        term_scales, bounds, jnp.maximum(jnp.abs(bounds), floors[where]),
-        jnp.asarray(penalty, dtype=float),
-    )  # fmt: skip
-    joint = _Joint(problem, theta_problem, payloads, robust, jnp.asarray(sharpness, float))
-    x0 = {name: robot.design()[name] for name in free}
-    params0 = {"design": _to_params(x0, problem), "trajectory": _to_params(theta0, theta_problem)}
-    with runtime_checks(False):
-        initial_value = _loss(params0, robot, motion, joint)
-        params, shift = params0, jnp.zeros_like(bounds)
-        for _ in range(rounds if constrained else 1):
-            # Shifted quadratic penalty (Powell-Hestenes-Rockafellar): move the bound
-            # seen by the penalty by the violation left, so the true bound is met.
-            shifted = eqx.tree_at(lambda j: j.design.bounds, joint, bounds - shift)
-            solution = minimize(
-                joint_loss, params, optimizer, max_steps, gtol, args=(robot, motion, shifted)
-            )
-            params = solution.params
-            if not constrained:
-                break
-            candidate = robot.with_design(_to_design(params["design"], problem))
-            theta = _to_design(params["trajectory"], theta_problem)
-            worst = jnp.max(payload_metrics(candidate, motion, theta, payloads, everything), 0)
-            excess = worst[where] - bounds
-            if bool(jnp.all(excess <= CONSTRAINT_RTOL * problem.bound_scales)):
-                break  # every constraint met to CONSTRAINT_RTOL: no further round
-            shift = jnp.maximum(shift + excess, 0.0)
-        final_value = _loss(params, robot, motion, joint)
-    # Keep the start if the optimiser ended above it (non-smooth peaks).
-    better = final_value <= initial_value
-    params = jax.tree.map(lambda a, b: jnp.where(better, a, b), params, params0)
-    optimised = robot.with_design(_to_design(params["design"], problem))
-    theta = _to_design(params["trajectory"], theta_problem)
-    after = payload_metrics(optimised, motion, theta, payloads, everything)
+    columns = [(terms + constrained).index(m) for m in everything]
     n = len(terms)
+    where = np.asarray([everything.index(m) for m in constrained], int)
+    ones = jnp.ones(n)
+
+    def make_problem(term_scales, bound_scales):
+        return _Problem(
+            free, two_sided, terms, constrained, lows, highs, jnp.asarray(weights),
+            jnp.asarray(term_scales), bounds, jnp.asarray(bound_scales),
+            jnp.asarray(penalty, dtype=float),
+        )  # fmt: skip
+
+    sharp = jnp.asarray(sharpness, float)
+    joint = _Joint(
+        make_problem(ones, jnp.ones_like(bounds)), theta_problem, payloads, robust, sharp
+    )
+    x0 = {name: robot.design()[name] for name in free}
+    params0 = {
+        "design": _to_params(x0, joint.design),
+        "trajectory": _to_params(theta0, theta_problem),
+    }
+    leaves, treedef = jax.tree_util.tree_flatten(params0)
+    shapes = [np.shape(leaf) for leaf in leaves]
+    cuts = np.cumsum([0] + [int(np.prod(shape, dtype=int)) for shape in shapes])
+
+    def unflat(x):
+        parts = [
+            x[a:b].reshape(shape) for a, b, shape in zip(cuts[:-1], cuts[1:], shapes, strict=True)
+        ]
+        return jax.tree_util.tree_unflatten(treedef, parts)
+
+    def evaluate(x, joint, at_start=False):
+        value, grad, values, faulty = _loss_grad(
+            unflat(x), robot, motion, joint, theta0, np.asarray(at_start)
+        )
+        flat = np.concatenate([np.ravel(np.asarray(g)) for g in jax.tree_util.tree_leaves(grad)])
+        return float(value), flat, np.asarray(values)[:, columns], bool(faulty)
+
+    x_start = np.concatenate([np.ravel(np.asarray(leaf, float)) for leaf in leaves])
+    # the robot and θ as given: their metric values set the scales (as codesign's)
+    _, _, before, faulty = evaluate(x_start, joint, at_start=True)
+    if faulty or not np.all(np.isfinite(before)):
+        _raise_invalid_start(robot, motion, theta0, payloads, everything, before)
+    floors = np.asarray(_floors(robot, motion, theta0, everything))
+    nominal = np.maximum(np.abs(np.mean(before, axis=0)), floors)
+    given = dict(scales or {})
+    term_scales = [max(float(given.get(metric_name(m), nominal[i])), floors[i])
+                   for i, m in enumerate(terms)]  # fmt: skip
+    bound_scales = np.maximum(np.abs(np.asarray(bounds)), floors[where])
+    joint = eqx.tree_at(lambda j: j.design, joint, make_problem(term_scales, bound_scales))
+    problem = joint.design
+    initial_value, _, at_first, _ = evaluate(x_start, joint)
+    x, shift = x_start, np.zeros(np.shape(bounds))
+    for _ in range(rounds if constrained else 1):
+        # Shifted quadratic penalty (Powell-Hestenes-Rockafellar): move the bound
+        # seen by the penalty by the violation left, so the true bound is met.
+        shifted = eqx.tree_at(lambda j: j.design.bounds, joint, bounds - shift)
+        if optimizer is None:  # host-driven L-BFGS around the one compiled program
+            result = lbfgs(
+                partial(_first_three, evaluate, shifted), x, max_steps=max_steps, gtol=gtol
+            )
+            x, worst = result.x, np.max(result.aux, axis=0)
+            status = (result.converged, result.steps, np.linalg.norm(result.grad), result.history)
+        else:  # the optax optimiser's compiled loop
+            args = (robot, motion, shifted)
+            with runtime_checks(False):
+                solution = minimize(joint_loss, unflat(x), optimizer, max_steps, gtol, args=args)
+            x = np.concatenate([np.ravel(np.asarray(p)) for p in jax.tree.leaves(solution.params)])
+            worst = np.max(evaluate(x, shifted)[2], axis=0)
+            status = (solution.converged, solution.steps, solution.grad_norm, solution.history)
+        if not constrained:
+            break
+        excess = worst[where] - np.asarray(bounds)
+        if np.all(excess <= CONSTRAINT_RTOL * bound_scales):
+            break  # every constraint met to CONSTRAINT_RTOL: no further round
+        shift = np.maximum(shift + excess, 0.0)
+    final_value, _, after, _ = evaluate(x, joint)
+    # Keep the start if the optimiser ended above it (non-smooth peaks).
+    if not final_value <= initial_value:
+        x, after = x_start, at_first
+    params = unflat(x)
+    optimised = robot.with_design(_to_design_numpy(params["design"], problem))
+    theta = {
+        k: jnp.asarray(v) for k, v in _to_design_numpy(params["trajectory"], theta_problem).items()
+    }
     names = [metric_name(m) for m in everything]
-    agg_before = jnp.concatenate(
-        [_aggregate(before[:, :n], term_scales, robust, sharpness), jnp.max(before[:, n:], 0)]
-    )
-    agg_after = jnp.concatenate(
-        [_aggregate(after[:, :n], term_scales, robust, sharpness), jnp.max(after[:, n:], 0)]
-    )
-    worst = jnp.max(after, axis=0)[where]
-    excess = worst - bounds
+    aggregated = [
+        np.concatenate([np.asarray(_aggregate(v[:, :n], problem.scales, robust, sharp)),
+                        np.max(v[:, n:], axis=0)])
+        for v in (before, after)
+    ]  # fmt: skip
+    worst = np.max(after, axis=0)[where]
+    excess = worst - np.asarray(bounds)
+    converged, steps, grad_norm, history = status
     return JointSolution(
         design=optimised.design(),
         trajectory=theta,
         robot=optimised,
-        value=jnp.minimum(final_value, initial_value),
-        initial_value=initial_value,
-        metrics={name: (agg_before[i], agg_after[i]) for i, name in enumerate(names)},
+        value=np.asarray(min(final_value, initial_value)),
+        initial_value=np.asarray(initial_value),
+        metrics={name: (aggregated[0][i], aggregated[1][i]) for i, name in enumerate(names)},
         constraints={metric_name(m): (worst[k], bounds[k]) for k, m in enumerate(constrained)},
-        feasible=jnp.all(excess <= FEASIBILITY_RTOL * problem.bound_scales),
-        converged=solution.converged,
-        steps=solution.steps,
-        grad_norm=solution.grad_norm,
-        history=solution.history,
+        feasible=np.all(excess <= FEASIBILITY_RTOL * bound_scales),
+        converged=np.asarray(converged),
+        steps=np.asarray(steps),
+        grad_norm=np.asarray(grad_norm),
+        history=np.asarray(history),
     )
+
+
+def _first_three(evaluate, joint, x):
+    return evaluate(x, joint)[:3]
+
+
+def _raise_invalid_start(robot, motion, theta, payloads, metrics, before) -> None:
+    """The named error of a start the compiled program flagged: the metrics evaluated
+    again with the runtime checks on raise it; else the non-finite values are listed."""
+    payload_metrics(robot, motion, theta, payloads, metrics)
+    listed = {metric_name(m): np.asarray(before[:, i]) for i, m in enumerate(metrics)}
+    raise ValueError(f"metrics of the starting design are not finite: {listed}")
