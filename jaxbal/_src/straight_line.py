@@ -93,8 +93,11 @@ def evaluate(jaxpr, consts, args) -> list[np.ndarray]:
 
 
 #: Above this many scalar results (summed over the jaxpr's equations) the replay would
-#: trace and compile too long (a mechanism with hundreds of bodies): ``fn`` runs as is.
-MAX_SCALARS = 40_000
+#: trace and compile too long: ``fn`` runs as is. XLA's compile time of the replay grows
+#: faster than linearly (measured on the 2-core CPU: the DUAL-V's Kane forces, 21,696
+#: scalars, 2.3 s; the 22-body split model of its torque distribution, 39,563 scalars,
+#: 19.7 s for a single state against 3.6 s without the replay).
+MAX_SCALARS = 30_000
 #: Generated programs kept per wrapped function (least recently used dropped).
 CACHE_SIZE = 64
 
