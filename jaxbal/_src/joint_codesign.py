@@ -15,7 +15,12 @@ with ``s`` the metric's scale and ``k = sharpness``; it equals ``v`` exactly for
 metric that does not depend on the payload (the added mass), so a Pareto front's
 added-mass end point is the added mass itself, not ``v + s log(n)/k``. Constraints (torque limit,
 added-mass budget, …) hold at the *worst* payload (hard maximum). The loss, the bound
-reparametrisation and the penalty are those of :mod:`jaxbal._src.design`.
+reparametrisation and the penalty are those of :mod:`jaxbal._src.design`; so is the
+solver: by default the host-driven L-BFGS of :mod:`jaxbal._src.lbfgs` around one compiled
+program, the loss's value and gradient with the metric values at every payload (the
+first joint co-design of the 2R test problem compiled in 21 s with optax's compiled
+loop, which inlines the motion factory at every call site, and in 10.5 s so, on the
+2-core CPU); with ``optimizer=`` an optax transformation, optax's compiled loop.
 
 References:
     Briot, Arakelian & Le Baron (2012), §2 (trajectory parameters of COM planning);
@@ -235,7 +240,9 @@ def joint_codesign(
         penalty: weight of the quadratic constraint penalty.
         scales: optional fixed scale per objective metric name (default: its value at
             the start) — pass the same scales along a Pareto front.
-        max_steps, gtol, optimizer: L-BFGS settings (:func:`jaxbal.minimize`).
+        max_steps, gtol: L-BFGS iteration cap and gradient-norm tolerance.
+        optimizer: ``None`` (host-driven L-BFGS) or an optax transformation
+            (:func:`jaxbal.minimize`).
         rounds: at most this many solves with a shifted penalty bound (same
             compilation), so that the constraints hold at the worst payload up to the
             solver's accuracy; they stop early once every constraint holds to
