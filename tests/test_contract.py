@@ -237,12 +237,18 @@ def test_mujoco_tree_is_a_robot_method_and_changes_with_tree_at():
 
 @pytest.fixture(scope="module")
 def motions():
-    """32 samples of each robot's move (loop closures checked by motion_samples)."""
+    """32 samples of a robot's move (loop closures checked by motion_samples), sampled
+    on first use: the robots of make test-all only cost a sampling compile there."""
     out = {}
-    for name in CASES:
-        robot, path = _motion(name)
-        out[name] = jaxbal.design.motion_samples(robot, [path], jaxbal.sample_times(DURATION, 32))
-    return out
+
+    def sampled(name):
+        if name not in out:
+            robot, path = _motion(name)
+            times = jaxbal.sample_times(DURATION, 32)
+            out[name] = jaxbal.design.motion_samples(robot, [path], times)
+        return out[name]
+
+    return sampled
 
 
 @pytest.mark.parametrize("name", slow_for(sorted(CASES), "dual_v", "orthoglide", "scara"))
@@ -251,7 +257,7 @@ def test_codesign_reduces_peak_force_and_payload_sensitivity_matches_fd(name, mo
     on every robot; the payload sensitivity of the RMS force equals central finite
     differences (1e-6 relative)."""
     robot, _ = _motion(name)
-    motion = motions[name]
+    motion = motions(name)
     free = ("counter_mass", "vertical_counterweight") if name == "scara" else ("counter_mass",)
     start = None
     if name.startswith("planar"):  # counterweights 0.2 m behind each joint (Briot §3.3)

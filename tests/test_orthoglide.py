@@ -232,6 +232,9 @@ def test_com_inverse_kinematics_gradients_match_finite_differences():
 # --- shaking force along the plans of §3.1 -------------------------------------------------
 
 
+# make test-all: the 2R's COM plan (test_planar_arm) and the Orthoglide's COM Newton solve
+# (test_newton_solve_value_and_implicit_gradient) stay in make test
+@pytest.mark.slow
 def test_com_plan_gives_constant_bang_bang_force():
     # reference: f_sh = -M a_S (eq 2); along the COM bang-bang plan |f_sh| = M·4|D|/T^2
     robot = orthoglide(payload=1.0)

@@ -46,7 +46,7 @@ def _objective(metric, robot, motion):
 SLOW = pytest.mark.slow  # make test-all: each metric and robot stays in make test
 PAIRS = [
     ("planar_2r", peak_force),
-    ("planar_2r", peak_moment),
+    pytest.param("planar_2r", peak_moment, marks=SLOW),
     ("planar_2r", peak_torque),
     ("dual_v", peak_force),
     pytest.param("dual_v", peak_torque, marks=SLOW),
