@@ -40,6 +40,24 @@ def test_equivalent_lambdas_compile_once():
     np.testing.assert_allclose(results[1].q, direct.q, rtol=0, atol=1e-15)
 
 
+def test_eager_sample_is_one_program_compiled_once():
+    """``jaxbal.sample`` called eagerly: an equivalent new lambda compiles nothing, and
+    the samples equal the closed form ``(sin ωt, ω cos ωt, −ω² sin ωt, −ω³ cos ωt)``
+    (tol 1e-12) with their own closure's ``ω``."""
+    times = jnp.linspace(0.0, 1.0, 7)
+    counts = []
+    for omega in (2.0, 3.0):
+        w = jnp.asarray(omega)
+        before = len(_COMPILES)
+        s, sd, sdd, sddd = jaxbal.sample(lambda t: jnp.sin(w * t), times, order=3)  # noqa: B023
+        counts.append(len(_COMPILES) - before)
+        sin, cos = jnp.sin(omega * times), jnp.cos(omega * times)
+        expected = (sin, omega * cos, -(omega**2) * sin, -(omega**3) * cos)
+        for got, want in zip((s, sd, sdd, sddd), expected, strict=True):
+            np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+    assert counts[0] > 0 and counts[1] == 0, counts
+
+
 def test_pytree_function_is_the_same_function():
     scale = jnp.asarray(3.0)
 

@@ -45,7 +45,7 @@ def _objective(metric, robot, motion):
 
 SLOW = pytest.mark.slow  # make test-all: each metric and robot stays in make test
 PAIRS = [
-    ("planar_2r", peak_force),
+    pytest.param("planar_2r", peak_force, marks=SLOW),  # FD-checked below
     pytest.param("planar_2r", peak_moment, marks=SLOW),
     ("planar_2r", peak_torque),
     ("dual_v", peak_force),

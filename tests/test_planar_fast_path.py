@@ -88,6 +88,9 @@ def test_shaking_wrench_dispatches_for_planar_arms():
             np.testing.assert_allclose(a, b, atol=1e-12 * float(jnp.max(jnp.abs(b))))
 
 
+# make test-all: the DUAL-V's planar-path wrench is confirmed by MuJoCo in make test
+# (test_mujoco_closure.py)
+@pytest.mark.slow
 def test_dual_v_planar_path_equals_general_path():
     """DUAL-V (22 bodies, counter-masses, rotors): planar = general evaluation, 1e-12."""
     robot = jaxbal.robots.dual_v()

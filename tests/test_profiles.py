@@ -4,6 +4,7 @@ References: Briot et al. (2012) eqs (3)-(4) and Fig 1; the closed forms of the
 bang-bang (4S/T²) and quintic (10S/(√3T²)) peak accelerations.
 """
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -16,6 +17,7 @@ from jaxbal.profiles import BangBang, BoundaryPolynomial, Quintic, TrapezoidalAc
 U = jnp.linspace(0.0, 1.0, 20001)
 
 
+@eqx.filter_jit  # one program (eagerly, the nested derivatives ran op by op)
 def derivatives(profile, u):
     return jax.vmap(lambda v: jaxbal.time_derivatives(profile, v, order=3))(u)
 

@@ -102,6 +102,9 @@ def test_balanced_robot_has_zero_shaking_force(make):
     assert float(jnp.max(jnp.abs(forces))) < 1e-9 * float(jnp.max(jnp.abs(forces0)))
 
 
+# make test-all: the generic co-design reaches the same closed form in make test
+# (test_design.py::test_scara_reaches_closed_form)
+@pytest.mark.slow
 def test_codesign_recovers_closed_form():
     # Reference: closed form (eqs 1-3), 1e-6 relative, from a start 60% off.
     robot = general_scara()
