@@ -211,7 +211,8 @@ def _dual_v_motion(robot, rotation):
     u = amplitude * jnp.sin(omega * t + phase)
     ud = amplitude * omega * jnp.cos(omega * t + phase)
     udd = -amplitude * omega**2 * jnp.sin(omega * t + phase)
-    return Motion(*jax.vmap(lambda *p: jaxbal.pose_motion(robot, *p))(u, ud, udd))
+    # one program (eagerly, the vmapped inverse kinematics ran op by op)
+    return Motion(*jax.jit(jax.vmap(lambda *p: jaxbal.pose_motion(robot, *p)))(u, ud, udd))
 
 
 def test_dual_v_conditions_match_the_paper():
