@@ -5,6 +5,7 @@ in its smooth parametrisation), constraints by their values, the front by domina
 by independent single-objective solves.
 """
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -119,6 +120,17 @@ def test_optax_optimizer_agrees_with_the_default(problem):
     )
     for name, x in default.trajectory.items():
         np.testing.assert_allclose(float(compiled.trajectory[name]), float(x), rtol=1e-5)
+
+
+def test_invalid_start_raises_naming_the_value(problem):
+    """A negative link mass set with ``eqx.tree_at`` (no constructor check) is refused
+    before any optimisation, with a ``ValueError`` naming the masses."""
+    arm, move = problem
+    bad = eqx.tree_at(lambda r: r.masses, arm, jnp.array([-1.0, 1.0]))
+    with pytest.raises(ValueError, match="body masses must be finite and >= 0"):
+        _solve(bad, move, "rms_force", max_steps=2)
+    with pytest.raises(ValueError, match="body masses must be finite and >= 0"):
+        payload_metrics(bad, move, THETA, PAYLOADS, ("rms_force",))
 
 
 def test_payload_metrics_vmaps_the_payload(problem):

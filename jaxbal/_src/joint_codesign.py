@@ -56,7 +56,7 @@ from jaxbal._src.momentum import replayed, robot_faulty
 from jaxbal._src.optimize import minimize
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
-from jaxbal._src.validation import runtime_checks
+from jaxbal._src.validation import checked_call, runtime_checks
 
 __all__ = ["CONSTRAINT_RTOL", "JointSolution", "joint_codesign", "payload_metrics"]
 
@@ -164,15 +164,13 @@ def _loss_grad(params, robot: Robot, motion: MotionFactory, joint: _Joint, given
 
 def payload_metrics(robot: Robot, motion: MotionFactory, trajectory, payloads, metrics: tuple):
     """``(n_payloads, len(metrics))`` metric values of ``robot`` moving with
-    ``motion(robot, trajectory)`` at every payload [SI] (jit-compiled, cached)."""
+    ``motion(robot, trajectory)`` at every payload [SI] (compiled once per structure;
+    an invalid robot or motion raises ``ValueError``)."""
     trajectory = {k: jnp.asarray(v, float) for k, v in trajectory.items()}
     payloads = jnp.asarray(payloads, float).reshape(-1)
-    return _payload_metrics(robot, motion, trajectory, payloads, tuple(metrics))
-
-
-@eqx.filter_jit
-def _payload_metrics(robot, motion, trajectory, payloads, metrics):
-    return _per_payload(robot, motion, trajectory, payloads, metrics)
+    # checked: a bad robot or motion raises ValueError with the values (not a runtime
+    # error from inside the program)
+    return checked_call(_per_payload, robot, motion, trajectory, payloads, tuple(metrics))
 
 
 @eqx.filter_jit
