@@ -317,6 +317,7 @@ def test_grad_of_peak_force_wrt_payload_through_planner():
     q0, q1 = jnp.array([1.0, -1.0]), jnp.array([1.6, -0.6])
     times = jnp.linspace(0.0, 0.5, 41)
 
+    @jax.jit  # one program for the values, one for the gradient (eagerly: op by op)
     def peak(payload):
         arm = jaxbal.robots.PlanarArm(
             base.lengths, base.com_ratios, base.masses, base.inertias, payload
