@@ -38,13 +38,13 @@ import equinox as eqx
 import jax.numpy as jnp
 
 from jaxbal._src.momentum import body_com_positions
-from jaxbal._src.motion_samples import JerkMotion, Motion, sampled
+from jaxbal._src.motion_samples import JerkMotion, Motion
 from jaxbal._src.planning import EndEffectorLine, com_line
 from jaxbal._src.profiles import BoundaryPolynomial, TrapezoidalAcceleration
 from jaxbal._src.robot import Robot
-from jaxbal._src.trajectory import StraightLine
+from jaxbal._src.trajectory import StraightLine, sample
 from jaxbal._src.types import Array
-from jaxbal._src.validation import checked_call, guard
+from jaxbal._src.validation import guard
 
 __all__ = ["JOIN_TOLERANCE", "ComTrapezoid", "TrapezoidLine", "end_effector_path"]
 
@@ -88,9 +88,8 @@ def _with_phases(times: Array, profile: TrapezoidalAcceleration, per_phase: int)
 
 
 def _sampled(path, times, order: int):
-    # compiled when called eagerly (nested jvp op by op is slow), with functional
-    # checks (the persistent cache keeps the program); inlined under a trace
-    samples = checked_call(sampled, path, times, order)
+    # compiled when called eagerly, inlined under a trace (jaxbal.sample)
+    samples = sample(path, times, order=order)
     return Motion(*samples) if order == 2 else JerkMotion(*samples)
 
 

@@ -43,12 +43,6 @@ class JerkMotion(NamedTuple):
     qddd: Float[Array, "t dof"]
 
 
-def sampled(trajectory, times, order):
-    """``sample(trajectory, times, order)`` as a tuple; call it through
-    :func:`~jaxbal._src.validation.checked_call` (compiled, functional checks)."""
-    return tuple(sample(trajectory, times, order=order))
-
-
 def _sample(robot, trajectory, times, order):
     """The samples of ``trajectory`` and the validity of each state (loop closures,
     finite): one program, compiled by :func:`~jaxbal._src.validation.checked_call`, whose
