@@ -2,25 +2,31 @@ PYTHON ?= python3.11
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# everything but Ray (its only test is slow): what `make test` needs
+TEST_STAMP := $(VENV)/.installed-test
 
 .PHONY: install test test-all lint reproduce bench fuzz clean
 
-$(STAMP): pyproject.toml
+$(TEST_STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV) || python3 -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e ".[test]"
+	@touch $(TEST_STAMP)
+
+$(STAMP): $(TEST_STAMP)
 	$(BIN)/python -m pip install --quiet -e ".[dev]"
 	@touch $(STAMP)
 
 install: $(STAMP)
 
-lint: $(STAMP)
+lint: $(TEST_STAMP)
 	$(BIN)/ruff check jaxbal experiments tests benchmarks
 	$(BIN)/ruff format --check jaxbal experiments tests benchmarks
 
 test: lint
 	$(BIN)/python -m pytest -n 2 -q -m "not slow"
 
-test-all: lint
+test-all: lint $(STAMP)
 	$(BIN)/python -m pytest -n 2 -q
 
 fuzz: $(STAMP)

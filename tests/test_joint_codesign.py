@@ -124,12 +124,12 @@ def test_optax_optimizer_agrees_with_the_default(problem):
 
 def test_invalid_start_raises_naming_the_value(problem):
     """A negative link mass set with ``eqx.tree_at`` (no constructor check) is refused
-    before any optimisation, with a ``ValueError`` naming the masses."""
+    before anything compiles, with a ``ValueError`` naming the masses."""
     arm, move = problem
     bad = eqx.tree_at(lambda r: r.masses, arm, jnp.array([-1.0, 1.0]))
-    with pytest.raises(ValueError, match="body masses must be finite and >= 0"):
+    with pytest.raises(ValueError, match=r"body masses must be .*-1\."):
         _solve(bad, move, "rms_force", max_steps=2)
-    with pytest.raises(ValueError, match="body masses must be finite and >= 0"):
+    with pytest.raises(ValueError, match=r"body masses must be .*-1\."):
         payload_metrics(bad, move, THETA, PAYLOADS, ("rms_force",))
 
 

@@ -11,7 +11,7 @@ import equinox as eqx
 import jax
 import jax.numpy as jnp
 
-from jaxbal._src.momentum import checked_bodies, checked_finite, checked_parameters
+from jaxbal._src.momentum import check_robot, checked_finite
 from jaxbal._src.motion_samples import Motion, as_motion
 from jaxbal._src.robot import Robot
 from jaxbal._src.validation import (
@@ -37,7 +37,7 @@ def batched(evaluate, robot: Robot, motion: Motion, what: str, jerk: bool = Fals
     if is_traced(robot, motion):
         return (samples if run is None else run)(evaluate, robot, motion)
     run = compiled_samples if run is None else run
-    checked_parameters(robot, checked_bodies(robot, None))
+    check_robot(robot)
     finite = jnp.all(jnp.isfinite(jnp.concatenate(motion, axis=-1)), axis=-1)
     raise_if_invalid(finite, "non-finite state (q, qd, qdd) in the motion at samples",
                      jnp.arange(finite.shape[0]))  # fmt: skip

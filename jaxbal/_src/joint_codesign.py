@@ -52,7 +52,7 @@ from jaxbal._src.design_loss import (
 )
 from jaxbal._src.lbfgs import lbfgs
 from jaxbal._src.metrics import Motion, check_design_names, metric_name, resolve_metric
-from jaxbal._src.momentum import replayed, robot_faulty
+from jaxbal._src.momentum import check_robot, replayed
 from jaxbal._src.optimize import minimize
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
@@ -143,12 +143,11 @@ def joint_loss(params, robot: Robot, motion: MotionFactory, joint: _Joint):
 
 @eqx.filter_jit
 def _loss_grad(params, robot: Robot, motion: MotionFactory, joint: _Joint, given, at_start):
-    """Loss, gradient (a pytree like ``params``) and ``(n_payloads, k)`` metric values,
-    and whether the given robot is invalid (a mask): the one program the default joint
-    co-design compiles. With ``at_start`` (a traced bool) the values are those of the
-    given robot and ``θ = given`` (the scales are then placeholders). Runtime checks
-    are off while it is traced (line-search trials may be non-finite); the caller
-    raises eagerly."""
+    """Loss, gradient (a pytree like ``params``) and ``(n_payloads, k)`` metric values:
+    the one program the default joint co-design compiles. With ``at_start`` (a traced
+    bool) the values are those of the given robot and ``θ = given`` (the scales are
+    then placeholders). Runtime checks are off while it is traced (line-search trials
+    may be non-finite); the robot is checked before, the caller raises eagerly."""
 
     def loss(p):
         designed = robot.with_design(_to_design(p["design"], joint.design))
@@ -159,7 +158,7 @@ def _loss_grad(params, robot: Robot, motion: MotionFactory, joint: _Joint, given
     # no straight-line replay: traced once, evaluated tens of times (momentum.replayed)
     with runtime_checks(False), replayed(False):
         (value, values), grad = jax.value_and_grad(loss, has_aux=True)(params)
-    return value, grad, values, robot_faulty(robot)
+    return value, grad, values
 
 
 def payload_metrics(robot: Robot, motion: MotionFactory, trajectory, payloads, metrics: tuple):
@@ -168,6 +167,7 @@ def payload_metrics(robot: Robot, motion: MotionFactory, trajectory, payloads, m
     an invalid robot or motion raises ``ValueError``)."""
     trajectory = {k: jnp.asarray(v, float) for k, v in trajectory.items()}
     payloads = jnp.asarray(payloads, float).reshape(-1)
+    check_robot(robot)  # before the (larger) program compiles
     # checked: a bad robot or motion raises ValueError with the values (not a runtime
     # error from inside the program)
     return checked_call(_per_payload, robot, motion, trajectory, payloads, tuple(metrics))
@@ -259,6 +259,7 @@ def joint_codesign(
         free = tuple(name for name in design if name != "payload")
     free = tuple(dict.fromkeys(check_design_names(robot, free)))
     robot = robot.with_design(dict(start or {}))
+    check_robot(robot)  # an invalid robot is refused before anything compiles
     if payloads is None:
         payloads = jnp.atleast_1d(design.get("payload", jnp.zeros(())))
     payloads = jnp.asarray(payloads, dtype=float).reshape(-1)
@@ -298,16 +299,16 @@ def joint_codesign(
         return jax.tree_util.tree_unflatten(treedef, parts)
 
     def evaluate(x, joint, at_start=False):
-        value, grad, values, faulty = _loss_grad(
+        value, grad, values = _loss_grad(
             unflat(x), robot, motion, joint, theta0, np.asarray(at_start)
         )
         flat = np.concatenate([np.ravel(np.asarray(g)) for g in jax.tree_util.tree_leaves(grad)])
-        return float(value), flat, np.asarray(values)[:, columns], bool(faulty)
+        return float(value), flat, np.asarray(values)[:, columns]
 
     x_start = np.concatenate([np.ravel(np.asarray(leaf, float)) for leaf in leaves])
     # the robot and θ as given: their metric values set the scales (as codesign's)
-    _, _, before, faulty = evaluate(x_start, joint, at_start=True)
-    if faulty or not np.all(np.isfinite(before)):
+    _, _, before = evaluate(x_start, joint, at_start=True)
+    if not np.all(np.isfinite(before)):
         _raise_invalid_start(robot, motion, theta0, payloads, everything, before)
     floors = np.asarray(_floors(robot, motion, theta0, everything))
     nominal = np.maximum(np.abs(np.mean(before, axis=0)), floors)
@@ -317,16 +318,14 @@ def joint_codesign(
     bound_scales = np.maximum(np.abs(np.asarray(bounds)), floors[where])
     joint = eqx.tree_at(lambda j: j.design, joint, make_problem(term_scales, bound_scales))
     problem = joint.design
-    initial_value, _, at_first, _ = evaluate(x_start, joint)
+    initial_value, _, at_first = evaluate(x_start, joint)
     x, shift = x_start, np.zeros(np.shape(bounds))
     for _ in range(rounds if constrained else 1):
         # Shifted quadratic penalty (Powell-Hestenes-Rockafellar): move the bound
         # seen by the penalty by the violation left, so the true bound is met.
         shifted = eqx.tree_at(lambda j: j.design.bounds, joint, bounds - shift)
         if optimizer is None:  # host-driven L-BFGS around the one compiled program
-            result = lbfgs(
-                partial(_first_three, evaluate, shifted), x, max_steps=max_steps, gtol=gtol
-            )
+            result = lbfgs(partial(evaluate, joint=shifted), x, max_steps=max_steps, gtol=gtol)
             x, worst = result.x, np.max(result.aux, axis=0)
             status = (result.converged, result.steps, np.linalg.norm(result.grad), result.history)
         else:  # the optax optimiser's compiled loop
@@ -342,7 +341,7 @@ def joint_codesign(
         if np.all(excess <= CONSTRAINT_RTOL * bound_scales):
             break  # every constraint met to CONSTRAINT_RTOL: no further round
         shift = np.maximum(shift + excess, 0.0)
-    final_value, _, after, _ = evaluate(x, joint)
+    final_value, _, after = evaluate(x, joint)
     # Keep the start if the optimiser ended above it (non-smooth peaks).
     if not final_value <= initial_value:
         x, after = x_start, at_first
@@ -374,10 +373,6 @@ def joint_codesign(
         grad_norm=np.asarray(grad_norm),
         history=np.asarray(history),
     )
-
-
-def _first_three(evaluate, joint, x):
-    return evaluate(x, joint)[:3]
 
 
 def _raise_invalid_start(robot, motion, theta, payloads, metrics, before) -> None:
