@@ -143,7 +143,9 @@ def test_joint_motion_vmap_equals_loop(name):
     assert bool(jnp.all(batched[3]))
 
 
-@pytest.mark.parametrize("name", ["dual_v", "orthoglide"])
+# the DUAL-V in make test-all: the same generic closure checks as the Orthoglide's (and
+# the MJCF five-bar's in test_mjcf_robot)
+@pytest.mark.parametrize("name", slow_for(["dual_v", "orthoglide"], "dual_v"))
 def test_violated_loop_closure_is_flagged(name):
     """A parallel-robot state off its loop closures is refused, not evaluated."""
     robot, path = _motion(name)
