@@ -60,7 +60,7 @@ def test_linear_wrench_equals_shaking_wrench(name):
     motion = motion_samples(robot, path, jnp.linspace(0.0, 0.2, 50))
     linear = balancing.linear_wrench(robot, motion)
     pi = np.ravel(np.asarray(balancing.lumped_parameters(robot)))
-    force, moment = jax.vmap(lambda *s: jaxbal.shaking_wrench(robot, *s))(*motion)
+    force, moment = jax.jit(jax.vmap(lambda *s: jaxbal.shaking_wrench(robot, *s)))(*motion)
     for y, direct in ((linear.force, force), (linear.moment, moment)):
         np.testing.assert_allclose(np.asarray(y) @ pi, direct, rtol=0, atol=1e-12 * _gross(y, pi))
     assert len(linear.names) == pi.size == linear.force.shape[-1]
@@ -101,6 +101,7 @@ def test_meeting_the_conditions_balances_every_motion():
     assert np.max(np.abs(conditions.residuals(_arm()))) > 0.1
     other = _sines([1.1, 4.7], [2.0, 0.3], samples=300)
 
+    @eqx.filter_jit  # one program for both arms (op by op it took seconds)
     def forces(robot):
         return jax.vmap(lambda *s: jaxbal.shaking_wrench(robot, *s)[0])(*other)
 
@@ -125,16 +126,12 @@ def test_serial_arm_moment_needs_more_than_counter_masses():
 
 def test_regressor_vmap_equals_loop_and_ignores_masses():
     arm, motion = _arm(), _sines([2.0, 3.3], [0.1, 0.7], samples=6)
-    batched = jax.vmap(lambda *s: balancing.wrench_regressor(arm, *s))(*motion)
+    batched = jax.jit(jax.vmap(balancing.wrench_regressor, (None, 0, 0, 0)))(arm, *motion)
     heavier = eqx.tree_at(lambda r: r.masses, arm, arm.masses * 3.0)
+    single = jax.jit(balancing.wrench_regressor)  # one program for both robots
     for k in range(6):
         state = [x[k] for x in motion]
-        for a, b, c in zip(
-            batched,
-            balancing.wrench_regressor(arm, *state),
-            jax.jit(balancing.wrench_regressor)(heavier, *state),
-            strict=True,
-        ):
+        for a, b, c in zip(batched, single(arm, *state), single(heavier, *state), strict=True):
             np.testing.assert_allclose(a[k], b, rtol=1e-14, atol=1e-12)
             np.testing.assert_allclose(c, b, rtol=1e-14, atol=1e-12)
 

@@ -97,8 +97,9 @@ def test_ik_round_trip_and_branch_validation(name):
             robot.inverse_kinematics(pose, branch=bad)
 
 
-# the closed chains: test_mujoco_closure.py (MuJoCo closes their loops itself)
-@pytest.mark.parametrize("name", slow_for(sorted(CASES), "dual_v", "orthoglide"))
+# the closed chains: test_mujoco_closure.py (MuJoCo closes their loops itself); the 3R
+# (the 2R's class, PlanarArm) in make test-all
+@pytest.mark.parametrize("name", slow_for(sorted(CASES), "dual_v", "orthoglide", "planar_3r"))
 def test_shaking_wrench_confirmed_by_mujoco(name):
     """Generic joint motion + shaking wrench vs MuJoCo C mj_inverse (1e-9 relative)."""
     robot, path = _motion(name)
@@ -131,7 +132,8 @@ def _com_plan_samples(plan, times):
     return jax.vmap(plan)(times), plan.valid(times), _state(plan.robot, plan, times[1])
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
+# the DUAL-V in make test-all (the Orthoglide, a closed chain too, stays)
+@pytest.mark.parametrize("name", slow_for(sorted(CASES), "dual_v"))
 def test_joint_motion_vmap_equals_loop(name):
     robot, path = _motion(name)
     times = jnp.linspace(0.0, DURATION, 4)
@@ -253,7 +255,11 @@ def motions():
     return sampled
 
 
-@pytest.mark.parametrize("name", slow_for(sorted(CASES), "dual_v", "orthoglide", "scara"))
+# the 3R in make test-all (the 2R's class; test_design co-designs the 3R with an added-mass
+# budget in make test)
+@pytest.mark.parametrize(
+    "name", slow_for(sorted(CASES), "dual_v", "orthoglide", "scara", "planar_3r")
+)
 def test_codesign_reduces_peak_force_and_payload_sensitivity_matches_fd(name, motions):
     """Generic co-design of the counter-masses lowers the peak shaking force of the move
     on every robot; the payload sensitivity of the RMS force equals central finite

@@ -157,10 +157,11 @@ def test_table1_residual_explained_by_rounding():
 
 def test_vmap_equals_loop():
     robot = dual_v()
-    batched = jax.vmap(robot.inverse_kinematics)(POSES)
-    looped = jnp.stack([robot.inverse_kinematics(p) for p in POSES])
+    batched = jax.jit(jax.vmap(lambda p: robot.inverse_kinematics(p)))(POSES)
+    one = jax.jit(lambda p: robot.inverse_kinematics(p))
+    looped = jnp.stack([one(p) for p in POSES])
     np.testing.assert_allclose(batched, looped, atol=1e-15)
-    qs, valid = jax.vmap(lambda p: robot.inverse_kinematics(p, return_valid=True))(
+    qs, valid = jax.jit(jax.vmap(lambda p: robot.inverse_kinematics(p, return_valid=True)))(
         POSES.at[0, 0].set(0.5)
     )
     assert not bool(valid[0]) and bool(jnp.all(valid[1:]))

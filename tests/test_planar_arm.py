@@ -153,9 +153,10 @@ def test_torque_rate_matches_finite_difference_in_time(arm):
 def test_vmap_equals_loop():
     arm = jaxbal.robots.planar_3r()
     qs, qds, qdds = random_states(8, 3)
-    batched = jax.vmap(lambda *s: jaxbal.shaking_wrench(arm, *s))(qs, qds, qdds)
+    batched = jax.jit(jax.vmap(lambda *s: jaxbal.shaking_wrench(arm, *s)))(qs, qds, qdds)
+    one = jax.jit(lambda *s: jaxbal.shaking_wrench(arm, *s))
     for k in range(8):
-        single = jaxbal.shaking_wrench(arm, qs[k], qds[k], qdds[k])
+        single = one(qs[k], qds[k], qdds[k])
         # Compiled straight-line code may contract a*b + c into one FMA: equal to rounding.
         np.testing.assert_allclose(batched[0][k], single[0], rtol=1e-14, atol=1e-12)
         np.testing.assert_allclose(batched[1][k], single[1], rtol=1e-14, atol=1e-12)
@@ -362,7 +363,7 @@ def test_force_balanced_arm_has_zero_shaking_force():
     arm = force_balanced(jaxbal.robots.planar_2r(), [0.35, 0.2])
     np.testing.assert_allclose(arm.equivalent_lengths(), 0.0, atol=1e-15)
     qs, qds, qdds = random_states(10, 2)
-    force, moment = jax.vmap(lambda *s: jaxbal.shaking_wrench(arm, *s))(qs, qds, qdds)
+    force, moment = jax.jit(jax.vmap(lambda *s: jaxbal.shaking_wrench(arm, *s)))(qs, qds, qdds)
     np.testing.assert_allclose(force, 0.0, atol=1e-11)
     assert float(jnp.max(jnp.abs(moment))) > 1.0
     distances = jnp.array([0.35, 0.2])
