@@ -44,7 +44,7 @@ from jaxbal._src.profiles import BoundaryPolynomial, TrapezoidalAcceleration
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import StraightLine, sample
 from jaxbal._src.types import Array
-from jaxbal._src.validation import guard
+from jaxbal._src.validation import checked_call, guard
 
 __all__ = ["JOIN_TOLERANCE", "ComTrapezoid", "TrapezoidLine", "end_effector_path"]
 
@@ -85,6 +85,11 @@ def _with_phases(times: Array, profile: TrapezoidalAcceleration, per_phase: int)
     inner = jnp.linspace(0.0, 1.0 - 1e-9, per_phase)
     dense = (starts[:, None] + widths[:, None] * inner[None, :]).reshape(-1)
     return jnp.concatenate([times, dense * times[-1]])
+
+
+def _arrays(theta) -> dict:
+    """``θ`` as float arrays (Python numbers would be static, one compilation each)."""
+    return {k: jnp.asarray(v, dtype=float) for k, v in theta.items()}
 
 
 def _sampled(path, times, order: int):
@@ -146,11 +151,8 @@ class TrapezoidLine(eqx.Module):
         _check_static(self.order, self.per_phase)
 
     def __call__(self, robot: Robot, theta) -> Motion | JerkMotion:
-        times = _times(self.times, theta)
-        profile = _profile(theta)
-        line = StraightLine(self.start, self.end, profile, times[-1])
-        times = _with_phases(times, profile, self.per_phase)
-        return _sampled(self.path(robot, line), times, self.order)
+        # eagerly one compiled program (checks raise ValueError), inlined under a trace
+        return checked_call(_line_motion, self, robot, _arrays(theta))
 
 
 class ComTrapezoid(eqx.Module):
@@ -191,17 +193,17 @@ class ComTrapezoid(eqx.Module):
         _check_static(self.order, self.per_phase)
 
     def __call__(self, robot: Robot, theta) -> Motion | JerkMotion:
-        times, profile, path = self._plan(robot, theta)
-        motion = _sampled(path, _with_phases(times, profile, self.per_phase), self.order)
-        return _joins(robot, motion, self.q_start, self.q_end, times.shape[0] - 1)
+        # eagerly one compiled program (checks raise ValueError), inlined under a trace:
+        # op by op, the COM plan's end points and the join check took seconds
+        return checked_call(_com_motion, self, robot, _arrays(theta))
 
     def valid(self, robot: Robot, theta) -> Array:
         """``(t,)`` boolean mask, one entry per sample instant (the jerk-phase instants
         included): is the COM target reachable there? Where it is False, calling the
         factory raises (eagerly and under ``jit``); e.g. a payload that moves the COM
-        line out of the robot's COM workspace."""
-        times, profile, path = self._plan(robot, theta)
-        return path.valid(_with_phases(times, profile, self.per_phase))
+        line out of the robot's COM workspace. Called eagerly it runs as one compiled
+        program (op by op it took seconds)."""
+        return checked_call(_valid_mask, self, robot, _arrays(theta))
 
     def _plan(self, robot: Robot, theta):
         """``(times, profile, COM line)`` of the move for ``robot`` and ``θ``."""
@@ -220,3 +222,25 @@ class ComTrapezoid(eqx.Module):
             free = StraightLine(pose[0], pose[1], BoundaryPolynomial(theta["phi"]), duration)
         path = com_line(robot, self.q_start, self.q_end, profile, duration, free, self.branch)
         return times, profile, path
+
+
+def _valid_mask(factory: ComTrapezoid, robot: Robot, theta) -> Array:
+    """:meth:`ComTrapezoid.valid` (module level: compiled once per structure)."""
+    times, profile, path = factory._plan(robot, theta)
+    return path.valid(_with_phases(times, profile, factory.per_phase))
+
+
+def _line_motion(factory: TrapezoidLine, robot: Robot, theta) -> Motion | JerkMotion:
+    """:meth:`TrapezoidLine.__call__` (module level: compiled once per structure)."""
+    times = _times(factory.times, theta)
+    profile = _profile(theta)
+    line = StraightLine(factory.start, factory.end, profile, times[-1])
+    times = _with_phases(times, profile, factory.per_phase)
+    return _sampled(factory.path(robot, line), times, factory.order)
+
+
+def _com_motion(factory: ComTrapezoid, robot: Robot, theta) -> Motion | JerkMotion:
+    """:meth:`ComTrapezoid.__call__` (module level: compiled once per structure)."""
+    times, profile, path = factory._plan(robot, theta)
+    motion = _sampled(path, _with_phases(times, profile, factory.per_phase), factory.order)
+    return _joins(robot, motion, factory.q_start, factory.q_end, times.shape[0] - 1)

@@ -34,7 +34,7 @@ from jaxbal._src.profiles import Profile
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import StraightLine, sample
 from jaxbal._src.types import Array, Float, ScalarLike
-from jaxbal._src.validation import check_shape, raise_if_invalid
+from jaxbal._src.validation import check_shape, checked_call, raise_if_invalid
 
 
 class EndEffectorLine(eqx.Module):
@@ -91,8 +91,14 @@ class ComLine(eqx.Module):
         return self._solve(t, False)
 
     def valid(self, times: Float[Array, " t"]) -> Float[Array, " t"]:
-        """Boolean mask: is the COM target reachable at each time (no exception)."""
-        return jax.vmap(lambda t: self._solve(t, True)[1])(jnp.asarray(times, dtype=float))
+        """Boolean mask: is the COM target reachable at each time (no exception).
+        Called eagerly it runs as one compiled program (op by op it took seconds)."""
+        return checked_call(_valid_mask, self, jnp.asarray(times, dtype=float))
+
+
+def _valid_mask(plan: ComLine, times):
+    """:meth:`ComLine.valid` (module level: compiled once per plan structure)."""
+    return jax.vmap(lambda t: plan._solve(t, True)[1])(times)
 
 
 def com_line(
