@@ -83,6 +83,7 @@ from jaxbal._src.metrics import (
     metric_name,
     resolve_metric,
 )
+from jaxbal._src.momentum import check_robot
 from jaxbal._src.optimize import minimize
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
@@ -193,12 +194,13 @@ def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol):
     n = len(problem.terms)
     where = np.asarray([everything.index(m) for m in problem.constrained], dtype=int)
     # the starting design as given: its metric values set the scales (module doc)
+    check_robot(robot)  # an invalid robot is refused before the program compiles
     loss_grad = loss_grad_function(robot, motion, problem, layout)
-    _, _, before, floors, faulty = loss_grad(x_start, np.asarray(True))
+    _, _, before, floors = loss_grad(x_start, np.asarray(True))
     before, floors = np.asarray(before), np.asarray(floors)
     finite_motion = all(np.all(np.isfinite(np.asarray(part))) for part in motion)
-    if bool(faulty) or not finite_motion or not np.all(np.isfinite(before)):
-        _raise_invalid_start(robot, motion, labels, before)
+    if not finite_motion or not np.all(np.isfinite(before)):
+        _raise_invalid_start(motion, labels, before)
     scales = np.maximum(np.abs(before[:n]), floors[:n])
     bound_scales = np.maximum(np.abs(np.asarray(problem.bounds)), floors[where])
     problem = eqx.tree_at(
@@ -210,7 +212,7 @@ def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol):
     at_start = np.asarray(False)
 
     def evaluate(x):
-        loss, grad, values, _, _ = loss_grad(x, at_start)
+        loss, grad, values, _ = loss_grad(x, at_start)
         return float(loss), np.asarray(grad), values
 
     result = lbfgs(evaluate, x_start, max_steps=max_steps, gtol=gtol)

@@ -22,13 +22,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.metrics import ADDED_MASS_VARIABLES, Motion, base_inertia, resolve_metric
-from jaxbal._src.momentum import (
-    checked_bodies,
-    checked_parameters,
-    replayed,
-    robot_faulty,
-    total_mass,
-)
+from jaxbal._src.momentum import replayed, total_mass
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
 from jaxbal._src.validation import runtime_checks
@@ -143,11 +137,11 @@ def given_or(robot: Robot, designed: Robot, at_start) -> Robot:
 
 
 def _loss_grad(params, robot: Robot, motion: Motion, problem: _Problem, at_start):
-    """Loss, gradient and metric values, the metrics' scale floors, and whether the given
-    robot is invalid (a mask, raised by the caller, who checks the motion on the host:
-    no runtime-error callbacks, so that the compiled program is stored in the persistent
-    compilation cache). Runtime checks are off while it is traced (line-search trials
-    may be non-finite)."""
+    """Loss, gradient and metric values, and the metrics' scale floors. The caller
+    checks the robot before (:func:`~jaxbal._src.momentum.check_robot`) and the motion
+    and the values on the host: no runtime-error callbacks, so that the compiled program
+    is stored in the persistent compilation cache. Runtime checks are off while it is
+    traced (line-search trials may be non-finite)."""
     # no straight-line replay: this program runs a few hundred times at most, and the
     # replay's trace and compile time outweigh its faster evaluations (momentum.replayed)
     with runtime_checks(False), replayed(False):
@@ -155,7 +149,7 @@ def _loss_grad(params, robot: Robot, motion: Motion, problem: _Problem, at_start
             params, robot, motion, problem, at_start
         )
     floors = jnp.stack([_floor(robot, motion, m) for m in _everything(problem)])
-    return loss, grad, values, floors, robot_faulty(robot)
+    return loss, grad, values, floors
 
 
 def _unflatten(x, layout) -> dict[str, Array]:
@@ -176,11 +170,9 @@ def _loss_grad_flat(layout, structure, x, leaves, at_start):
     dispatch of microseconds (no pytree filtering per call)."""
     treedef, static = structure
     robot, motion, problem = eqx.combine(jax.tree_util.tree_unflatten(treedef, leaves), static)
-    loss, grad, values, floors, faulty = _loss_grad(
-        _unflatten(x, layout), robot, motion, problem, at_start
-    )
+    loss, grad, values, floors = _loss_grad(_unflatten(x, layout), robot, motion, problem, at_start)
     grad = jnp.concatenate([jnp.ravel(grad[name]) for name, _ in layout])
-    return loss, grad, values, floors, faulty
+    return loss, grad, values, floors
 
 
 class _Structure:
@@ -202,7 +194,7 @@ class _Structure:
 
 
 def loss_grad_function(robot: Robot, motion: Motion, problem: _Problem, layout):
-    """``(x, at_start) -> (loss, grad (n,), values, floors, faulty)`` (see
+    """``(x, at_start) -> (loss, grad (n,), values, floors)`` (see
     :func:`_loss_grad_flat`); compiled once per structure."""
     dynamic, static = eqx.partition((robot, motion, problem), eqx.is_array)
     leaves, treedef = jax.tree_util.tree_flatten(dynamic)
@@ -224,10 +216,9 @@ def _combine_numpy(values, constrained, problem: _Problem) -> float:
     return float(loss)
 
 
-def _raise_invalid_start(robot: Robot, motion: Motion, names, before) -> None:
-    """The named error of a start the compiled co-design flagged (eager checks)."""
-    checked_parameters(robot, None)
-    checked_bodies(robot, None)
+def _raise_invalid_start(motion: Motion, names, before) -> None:
+    """The named error of a start the compiled co-design flagged (the robot was checked
+    before, by ``check_robot``): a non-finite motion, else the non-finite values."""
     for name, value in zip(("q", "qd", "qdd"), motion, strict=True):
         value = np.asarray(value)
         if not np.all(np.isfinite(value)):
