@@ -139,6 +139,9 @@ def test_payload_metrics_vmaps_the_payload(problem):
     one = payload_metrics(arm.with_design({"payload": PAYLOADS[1]}), move, THETA,
                           PAYLOADS[1:2], ("rms_force",))  # fmt: skip
     np.testing.assert_allclose(values[1], one[0], rtol=1e-12)  # reference: same computation
+    # under jit, the robot traced (the eager robot check steps aside for the traced guards)
+    compiled = jax.jit(lambda r: payload_metrics(r, move, THETA, PAYLOADS, ("rms_force",)))
+    np.testing.assert_allclose(compiled(arm), values, rtol=1e-12)
 
 
 def test_nondominated_known_set():

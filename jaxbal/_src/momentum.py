@@ -89,8 +89,13 @@ def check_robot(robot: Robot) -> None:
     :func:`checked_parameters` would reject ``robot`` (an eager call: the entry points
     check the robot before compiling their program). The test is one small compiled
     mask per robot structure (~0.3 s the first time; the same checks run op by op
-    took 1–1.6 s), the checks that name the values run only when it is set."""
-    if bool(_faulty(robot)):
+    took 1–1.6 s), the checks that name the values run only when it is set. Under a
+    trace (``jit``, ``vmap``, ``grad``) it does nothing: the traced physics guards the
+    robot itself."""
+    faulty = _faulty(robot)
+    if isinstance(faulty, jax.core.Tracer):
+        return
+    if bool(faulty):
         checked_parameters(robot, checked_bodies(robot, None))
 
 
