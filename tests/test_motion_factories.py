@@ -107,6 +107,14 @@ def test_jerk_motion_gives_the_same_other_metrics(arm):
         np.testing.assert_allclose(float(metric(arm, three)), float(metric(arm, two)), rtol=1e-13)
 
 
+def test_a_robot_with_negative_lengths_is_refused(arm):
+    """Set with ``eqx.tree_at``: the IK alone returned a mirrored motion without error;
+    the factories refuse the robot, naming the field and its value."""
+    bad = eqx.tree_at(lambda r: r.lengths, arm, -arm.lengths)
+    with pytest.raises(ValueError, match=r"must be >= 0.*PlanarArm\.lengths.*-0\."):
+        TrapezoidLine(START, END, jaxbal.sample_times(CYCLE, 8))(bad, THETA)
+
+
 def test_duration_is_the_cycle_time(arm):
     times = jaxbal.sample_times(CYCLE, 12)
     scaled = TrapezoidLine(START, END, times)(arm, {**THETA, "duration": 0.8})

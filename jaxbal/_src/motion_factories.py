@@ -37,7 +37,7 @@ from collections.abc import Callable
 import equinox as eqx
 import jax.numpy as jnp
 
-from jaxbal._src.momentum import body_com_positions
+from jaxbal._src.momentum import body_com_positions, check_robot
 from jaxbal._src.motion_samples import JerkMotion, Motion
 from jaxbal._src.planning import EndEffectorLine, com_line
 from jaxbal._src.profiles import BoundaryPolynomial, TrapezoidalAcceleration
@@ -152,6 +152,7 @@ class TrapezoidLine(eqx.Module):
 
     def __call__(self, robot: Robot, theta) -> Motion | JerkMotion:
         # eagerly one compiled program (checks raise ValueError), inlined under a trace
+        check_robot(robot)  # the IK alone would accept e.g. negative lengths
         return checked_call(_line_motion, self, robot, _arrays(theta))
 
 
@@ -195,6 +196,7 @@ class ComTrapezoid(eqx.Module):
     def __call__(self, robot: Robot, theta) -> Motion | JerkMotion:
         # eagerly one compiled program (checks raise ValueError), inlined under a trace:
         # op by op, the COM plan's end points and the join check took seconds
+        check_robot(robot)
         return checked_call(_com_motion, self, robot, _arrays(theta))
 
     def valid(self, robot: Robot, theta) -> Array:
