@@ -100,8 +100,8 @@ def pose_motion(robot: Robot, pose, pose_d, pose_dd, *, branch=None):
         return robot.inverse_kinematics(u, branch=branch)
 
     def velocity(u, ud):
-        return jax.jvp(ik, (u,), (ud,))[1]
+        return jax.jvp(ik, (u,), (ud,))
 
-    q, qd = jax.jvp(ik, (pose,), (pose_d,))
-    qdd = jax.jvp(velocity, (pose, pose_d), (pose_d, pose_dd))[1]
+    # one trace of the inverse kinematics (its checks included) for all three
+    (q, qd), (_, qdd) = jax.jvp(velocity, (pose, pose_d), (pose_d, pose_dd))
     return q, qd, qdd
