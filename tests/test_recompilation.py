@@ -3,7 +3,6 @@ parameter values compiles nothing new (counted with JAX's backend-compile events
 
 import jax
 import jax.numpy as jnp
-import numpy as np
 import pytest
 
 import jaxbal
@@ -72,25 +71,3 @@ def test_codesign_compiles_once(setup):
         return jaxbal.design.codesign(r, motion, "rms_force", free=("counter_mass",), max_steps=5)
 
     assert _compiles_of(call, robot, other) == 0
-
-
-def test_eager_inverse_kinematics_is_one_program_compiled_once(setup):
-    """Called eagerly, the IK runs as one compiled program (op by op it compiled dozens
-    of primitives the first time in a process): another pose given as a list, another
-    parameter value and a NumPy-scalar branch compile nothing; the values equal the
-    traced IK's, and an unreachable pose still raises ValueError naming it."""
-    robot, other, path, _, _ = setup
-    start, end = path.line.start, path.line.end
-    branch = robot.default_branch
-    q = robot.inverse_kinematics(start, branch=branch)
-    n = len(_COMPILES)
-    # a list of Python floats and NumPy-scalar signs: passed as arrays / Python ints
-    as_list = np.asarray(end).tolist()
-    q_end = other.inverse_kinematics(as_list, branch=tuple(np.int64(s) for s in branch))
-    assert len(_COMPILES) == n
-    traced = jax.jit(lambda r, u: r.inverse_kinematics(u, branch=branch))
-    np.testing.assert_allclose(q, traced(robot, start), rtol=1e-14, atol=1e-15)
-    np.testing.assert_allclose(q_end, traced(other, end), rtol=1e-14, atol=1e-15)
-    far = jnp.full(start.shape, 50.0)
-    with pytest.raises(ValueError, match=r"(outside|out of).*50\."):
-        robot.inverse_kinematics(far, branch=branch)

@@ -196,55 +196,6 @@ def checked_call(fn, *args):
     return _LIBRARY[fn](*args)
 
 
-def compiled_when_eager(method):
-    """Decorator of a robot method (inverse kinematics …): called eagerly, it runs as one
-    compiled program (:func:`checked_call`: its checks raise ``ValueError`` with the
-    offending values), compiled once per robot structure and keyword values; under a
-    trace (``jit``, ``vmap``, ``grad``) it is the method itself.
-
-    Op by op, a closed-form inverse kinematics dispatched dozens of primitives, each
-    compiled the first time in a process (1.3–1.8 s for the 2R's first call). Positional
-    Python numbers and sequences are passed as float arrays, keyword floats (``free=``)
-    as arrays (a new value compiles nothing); other keywords (``branch``,
-    ``return_valid``) are static.
-    """
-
-    @functools.wraps(method)
-    def call(self, *args, **kwargs):
-        if is_traced(self, args, kwargs):
-            return method(self, *args, **kwargs)
-        args = tuple(_float_array(a) for a in args)
-        keywords = tuple((k, _keyword(k, v)) for k, v in sorted(kwargs.items()))
-        return checked_call(_method_call, method, self, args, keywords)
-
-    return call
-
-
-def _float_array(value):
-    """A positional argument as a float array, unless it is ``None``, a bool or a pytree
-    that is not a number, a sequence or an array (those pass as they are)."""
-    if value is None or isinstance(value, bool | np.bool_):
-        return value
-    if isinstance(value, int | float | list | tuple | np.ndarray | np.number | jax.Array):
-        return jnp.asarray(value, dtype=float)
-    return value
-
-
-def _keyword(name: str, value):
-    """``branch``/``return_valid`` as Python values (static, also when given as NumPy or
-    JAX scalars and arrays), a Python float (``free=``) as an array, others as given."""
-    if name in ("branch", "return_valid"):
-        return jax.tree_util.tree_map(
-            lambda x: x.tolist() if isinstance(x, np.generic | np.ndarray | jax.Array) else x,
-            value,
-        )
-    return jnp.asarray(value) if type(value) is float else value
-
-
-def _method_call(method, robot, args, keywords):
-    return method(robot, *args, **dict(keywords))
-
-
 @contextlib.contextmanager
 def runtime_checks(enabled: bool):
     """Context manager: runtime value checks on/off while tracing inside the block.

@@ -71,7 +71,7 @@ from jaxbal._src.robots.dual_v_layout import (
     dual_v_tree,
 )
 from jaxbal._src.types import Array, Float
-from jaxbal._src.validation import check_nonnegative, check_shape, compiled_when_eager, guard
+from jaxbal._src.validation import check_nonnegative, check_shape, guard
 
 __all__ = ["CROSSED", "OUTWARD", "DualV", "dual_v"]
 
@@ -255,7 +255,6 @@ class DualV(PlanarRobot):
 
     # --- kinematics -----------------------------------------------------------------
 
-    @compiled_when_eager
     def inverse_kinematics(self, pose, *, branch=None, return_valid: bool = False):
         """All 11 coordinates from the platform pose, closed form per arm.
 

@@ -46,7 +46,7 @@ from jaxbal._src.robots.mjcf_kinematics import point_in_world, world_frames
 from jaxbal._src.robots.mjcf_solve import closure, closure_motion, inverse_kinematics, pose_motion
 from jaxbal._src.robots.mjcf_tree import mjcf_tree
 from jaxbal._src.types import Array, Coordinates, Float
-from jaxbal._src.validation import check_shape, compiled_when_eager
+from jaxbal._src.validation import check_shape
 
 __all__ = ["MjcfRobot"]
 
@@ -309,7 +309,6 @@ class MjcfRobot(Robot):
             return ()
         return super().branch(branch)
 
-    @compiled_when_eager
     def inverse_kinematics(self, pose, *, branch=None, return_valid: bool = False, guess=None):
         """All coordinates ``q (dof,)`` for an end-effector ``pose`` (as
         :meth:`end_effector` returns it), by Newton from ``guess`` (default

@@ -61,7 +61,11 @@ from jaxbal._src.robot import Bodies, Robot, concatenate, point_masses
 from jaxbal._src.robots.orthoglide_layout import COUNTER_SLIDERS, orthoglide_tree
 from jaxbal._src.trajectory import StraightLine
 from jaxbal._src.types import Array, Float
-from jaxbal._src.validation import check_nonnegative, check_shape, compiled_when_eager, guard
+from jaxbal._src.validation import (
+    check_nonnegative,
+    check_shape,
+    guard,
+)
 
 __all__ = ["COUNTER_SLIDERS", "Orthoglide", "motion_cases", "orthoglide", "switching_times"]
 
@@ -229,7 +233,6 @@ class Orthoglide(Robot):
         sq = p**2
         return self.length**2 - (jnp.sum(sq) - sq)
 
-    @compiled_when_eager
     def inverse_kinematics(self, pose, *, branch=None, return_valid: bool = False):
         """Inputs ρ and all coordinates ``q = (ρ, p)`` for the platform point ``p``, eq (1).
 
@@ -259,7 +262,6 @@ class Orthoglide(Robot):
         out_of_reach = "platform point (pose) out of reach of the Orthoglide legs"
         return (q, valid) if return_valid else guard(q, ~valid, out_of_reach, given)
 
-    @compiled_when_eager
     def forward_kinematics(self, rho, return_valid: bool = False):
         """Platform point ``p (3,)`` [m] from the inputs ``ρ (3,)`` [m], closed form.
 
@@ -295,7 +297,6 @@ class Orthoglide(Robot):
         """Total COM ``S (3,)`` [m] for the platform point ``p``: eq (6) (payload included)."""
         return center_of_mass(self, self.inverse_kinematics(p))
 
-    @compiled_when_eager
     def com_inverse_kinematics(
         self, com, free=None, *, branch=None, return_valid: bool = False, guess=None
     ):

@@ -37,13 +37,7 @@ from jaxbal._src.mujoco.tree import Joint, Tree, TreeBody, Z, identity
 from jaxbal._src.planar import PlanarRobot
 from jaxbal._src.robot import Bodies, concatenate, planar_inertia, point_masses
 from jaxbal._src.types import Array, Float
-from jaxbal._src.validation import (
-    check_nonnegative,
-    check_shape,
-    compiled_when_eager,
-    guard,
-    raise_if_invalid,
-)
+from jaxbal._src.validation import check_nonnegative, check_shape, guard, raise_if_invalid
 
 
 def _partial_sums(values):
@@ -181,7 +175,6 @@ class PlanarArm(PlanarRobot):
         )
         return numerator / m_tot
 
-    @compiled_when_eager
     def inverse_kinematics(self, pose, *, branch=None, return_valid: bool = False):
         """End-effector inverse kinematics.
 
@@ -219,7 +212,6 @@ class PlanarArm(PlanarRobot):
         # under jit too (a clipped, silently wrong q before): see validation.guard
         return guard(q, ~valid, "end-effector pose outside the workspace", pose_given)
 
-    @compiled_when_eager
     def com_inverse_kinematics(
         self, com, free=None, *, branch=None, return_valid: bool = False, guess=None
     ):

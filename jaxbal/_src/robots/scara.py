@@ -61,7 +61,6 @@ from jaxbal._src.types import Array, Float, ScalarLike
 from jaxbal._src.validation import (
     check_nonnegative,
     check_shape,
-    compiled_when_eager,
     guard,
     is_traced,
 )
@@ -198,7 +197,6 @@ class Scara(Robot):
         q = jnp.asarray(q, dtype=float)
         return jnp.concatenate([self.joint_positions(q)[2], jnp.sum(q[:3])[None], q[3:]])
 
-    @compiled_when_eager
     def inverse_kinematics(self, pose, *, branch=None, return_valid: bool = False):
         """Joint coordinates ``(θ1, θ2, θ3, d4)`` of an end-effector pose, eqs (4)-(6).
 
