@@ -93,7 +93,7 @@ def _arrays(theta) -> dict:
 
 
 def _sampled(path, times, order: int):
-    # compiled when called eagerly, inlined under a trace (jaxbal.sample)
+    # the factories call it under a trace (checked_call of their module-level functions)
     samples = sample(path, times, order=order)
     return Motion(*samples) if order == 2 else JerkMotion(*samples)
 
