@@ -150,7 +150,10 @@ def test_eq30_sensitivity_closed_form():
     np.testing.assert_allclose(result.moment, 2 / 0.28, rtol=1e-9)
     np.testing.assert_allclose(result.payload, 1.0, rtol=1e-9)
     np.testing.assert_allclose(result.tuning_equivalent, 2 * 0.188 * 0.08 / 0.28, rtol=1e-9)
-    np.testing.assert_allclose(result.acceleration, jnp.max(jnp.abs(motion[2][:, 0])), rtol=0)
+    # the move's two peaks of |ẍ| mirror each other (±82.45 m/s², equal up to rounding,
+    # which differs between CPUs): either may be the instant, so compare magnitudes
+    peak = jnp.max(jnp.abs(motion[2][:, 0]))
+    np.testing.assert_allclose(jnp.abs(result.acceleration), peak, rtol=0)
 
 
 def test_sweeps_follow_the_reduced_mass():
