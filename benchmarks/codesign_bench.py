@@ -1,6 +1,7 @@
-"""Co-design speed: ``jaxbal.design.codesign`` (L-BFGS, exact gradients, one compiled
-loop) against ``scipy.optimize.minimize`` (SLSQP with finite-difference gradients) on
-the same objective, the same bounds and the same start, in the same run.
+"""Co-design speed: ``jaxbal.design.codesign`` (L-BFGS-B driven from the host around one
+compiled value-and-gradient, exact gradients) against ``scipy.optimize.minimize``
+(SLSQP with finite-difference gradients) on the same objective, the same bounds and the
+same start, in the same run.
 
 Problems (each objective has an interior optimum, so both methods must agree):
 - SCARA: the three counter-masses, distances fixed (Arakelian & Briot 2008 layout);

@@ -21,7 +21,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.metrics import ADDED_MASS_VARIABLES, Motion, base_inertia, resolve_metric
+from jaxbal._src.metrics import (
+    ADDED_MASS_VARIABLES,
+    Motion,
+    base_inertia,
+    check_design_names,
+    finite_array,
+    resolve_metric,
+)
 from jaxbal._src.momentum import replayed, total_mass
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
@@ -49,10 +56,17 @@ class _Problem(eqx.Module):
     bounds: Array
     bound_scales: Array
     penalty: Array
+    #: whether the parameters are those of the bound map (``x = lower + r²``, ``lower +
+    #: (upper − lower) sin² r``: the optax loop and the joint co-design) or the design
+    #: variables themselves (the default co-design's L-BFGS-B holds the bounds).
+    mapped: bool = eqx.field(static=True, default=True)
 
 
 def _to_design(params: dict[str, Array], problem: _Problem) -> dict[str, Array]:
-    """The bounded design variables from the unconstrained parameters ``r``."""
+    """The bounded design variables from the unconstrained parameters ``r`` (the
+    parameters themselves when ``problem.mapped`` is False)."""
+    if not problem.mapped:
+        return dict(params)
     design = {}
     for name, two, lo, hi in zip(
         problem.free, problem.two_sided, problem.lower, problem.upper, strict=True
@@ -64,6 +78,8 @@ def _to_design(params: dict[str, Array], problem: _Problem) -> dict[str, Array]:
 
 def _to_design_numpy(params: Mapping[str, np.ndarray], problem: _Problem) -> dict:
     """:func:`_to_design` in NumPy (the optimiser's final point, on the host)."""
+    if not problem.mapped:
+        return {name: np.asarray(value, dtype=float) for name, value in params.items()}
     design = {}
     for name, two, lo, hi in zip(
         problem.free, problem.two_sided, problem.lower, problem.upper, strict=True
@@ -74,7 +90,10 @@ def _to_design_numpy(params: Mapping[str, np.ndarray], problem: _Problem) -> dic
 
 
 def _to_params(design: Mapping[str, np.ndarray], problem: _Problem) -> dict[str, Array]:
-    """Parameters ``r`` of a design, moved :data:`START_OFFSET` inside the bounds."""
+    """Parameters ``r`` of a design moved :data:`START_OFFSET` inside the bounds (the
+    design variables themselves, so moved, when ``problem.mapped`` is False: a design
+    whose counter-masses and distances all start at zero is a saddle of the force, whose
+    products ``m·d`` have a zero gradient there)."""
     params = {}
     for name, two, lo, hi in zip(
         problem.free, problem.two_sided, problem.lower, problem.upper, strict=True
@@ -84,9 +103,12 @@ def _to_params(design: Mapping[str, np.ndarray], problem: _Problem) -> dict[str,
             span = hi - lo
             inset = np.minimum(START_OFFSET / span, 0.25)
             fraction = np.clip((x - lo) / span, inset, 1.0 - inset)
-            params[name] = jnp.asarray(np.arcsin(np.sqrt(fraction)))
+            inside = lo + span * fraction
+            params[name] = np.arcsin(np.sqrt(fraction)) if problem.mapped else inside
         else:
-            params[name] = jnp.asarray(np.sqrt(np.maximum(x - lo, START_OFFSET)))
+            inside = np.maximum(x, lo + START_OFFSET)
+            params[name] = np.sqrt(inside - lo) if problem.mapped else inside
+        params[name] = jnp.asarray(params[name], dtype=float)
     return params
 
 
@@ -244,3 +266,37 @@ def _floor(robot: Robot, motion: Motion, metric) -> Scalar:
     )
     reference = total_mass(bare) if metric == "added_mass" else base_inertia(bare, motion.q[0])
     return jnp.maximum(reference, SCALE_FLOOR)
+
+
+def _objective_terms(objective) -> tuple[tuple, tuple[float, ...]]:
+    if isinstance(objective, Mapping):
+        if not objective:
+            raise ValueError("objective dict is empty; give {metric name: weight}")
+        terms, weights = tuple(objective), tuple(float(w) for w in objective.values())
+    else:
+        terms, weights = (objective,), (1.0,)
+    for term in terms:
+        resolve_metric(term)
+    if not all(np.isfinite(w) and w >= 0 for w in weights):
+        raise ValueError(f"objective weights must be finite and non-negative, got {weights}")
+    return terms, weights
+
+
+def _bounds(robot, free, lower, upper):
+    design = robot.design()
+    merged = dict(robot.design_lower_bounds())
+    merged.update(lower or {})
+    check_design_names(robot, merged)
+    check_design_names(robot, upper or {})
+    lows, highs, two_sided = [], [], []
+    for name in free:
+        shape = np.shape(design[name])
+        lo = np.broadcast_to(finite_array(f"lower[{name!r}]", merged.get(name, 0.0)), shape)
+        two = upper is not None and name in upper
+        hi = np.broadcast_to(finite_array(f"upper[{name!r}]", upper[name]), shape) if two else lo
+        if two and not np.all(hi > lo):
+            raise ValueError(f"upper[{name!r}] = {hi!r} must exceed lower = {lo!r}")
+        lows.append(jnp.asarray(lo, dtype=float))
+        highs.append(jnp.asarray(hi, dtype=float))
+        two_sided.append(bool(two))
+    return tuple(lows), tuple(highs), tuple(two_sided)

@@ -39,10 +39,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.design import CONSTRAINT_PENALTY, FEASIBILITY_RTOL, _bounds, _objective_terms
+from jaxbal._src.design import CONSTRAINT_PENALTY, FEASIBILITY_RTOL
 from jaxbal._src.design_loss import (
+    _bounds,
     _combine,
     _floor,
+    _objective_terms,
     _Problem,
     _to_design,
     _to_design_numpy,

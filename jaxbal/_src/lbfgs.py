@@ -1,4 +1,6 @@
-"""A compact L-BFGS driven from the host around one compiled value-and-gradient.
+"""A compact L-BFGS driven from the host around one compiled value-and-gradient (the
+joint co-design's solver, on its smooth bound map; the counter-mass co-design uses
+SciPy's L-BFGS-B, :mod:`jaxbal._src.lbfgsb`, which holds the bounds itself).
 
 :func:`jaxbal.minimize` compiles optax's L-BFGS and its zoom line search into one
 ``lax.while_loop``: the objective is inlined at every call site of that program (the

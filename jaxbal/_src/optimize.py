@@ -6,9 +6,10 @@ fronts, a user's own loss): minimise a scalar ``loss(params)`` over any pytree
 least-squares design problems converge to ~1e-10 relative in tens of steps -- or with
 any optax first-order optimiser (Adam for non-smooth objectives such as a maximum over
 time), as one compiled ``lax.while_loop`` (nothing returns to Python between steps).
-:func:`jaxbal.design.codesign` uses it when given ``optimizer=``; by default it drives a
-compact L-BFGS from the host around one compiled value-and-gradient
-(:mod:`jaxbal._src.lbfgs`), which compiles several times faster.
+:func:`jaxbal.design.codesign` uses it when given ``optimizer=``; by default it drives
+SciPy's L-BFGS-B from the host around one compiled value-and-gradient
+(:mod:`jaxbal._src.lbfgsb`; the joint co-design, a compact L-BFGS, :mod:`jaxbal._src.lbfgs`),
+which compiles several times faster.
 
 References:
     Liu & Nocedal (1989), L-BFGS; optax.lbfgs.
