@@ -123,3 +123,24 @@ def test_non_finite_start_and_step_cap():
         gtol=0.0,
     )
     assert capped.steps == 3 and not capped.converged
+
+
+def test_a_loss_falling_to_zero_is_not_stopped_early():
+    """A rotated quadratic whose minimum is 0 (a perfectly balanced design, loss 1 at the
+    start): L-BFGS-B's stopping test on the loss decrease is relative to max(|f|, 1),
+    i.e. absolute once the loss is small; the runs are rescaled, so the point still
+    reaches the minimiser to 1e-9 and the projected gradient gtol = 1e-14."""
+    rng = np.random.default_rng(3)
+    rotation = np.linalg.qr(rng.normal(size=(12, 12)))[0]
+    hessian = rotation @ np.diag(np.geomspace(1.0, 100.0, 12)) @ rotation.T
+    exact = rng.uniform(1.0, 2.0, 12)
+    x0 = np.zeros(12)
+    norm = 0.5 * (x0 - exact) @ hessian @ (x0 - exact)
+
+    def fun(x):
+        e = x - exact
+        return 0.5 * e @ hessian @ e / norm, hessian @ e / norm, None
+
+    result = lbfgsb(fun, x0, np.zeros(12), np.full(12, np.inf), max_steps=500, gtol=1e-14)
+    assert result.converged and result.value < 1e-20
+    np.testing.assert_allclose(result.x, exact, rtol=0, atol=1e-9)

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Callable
+from functools import partial
 
 import numpy as np
 from scipy.optimize import Bounds, minimize
@@ -39,6 +40,11 @@ from jaxbal._src.lbfgs import MAX_BACKTRACKS, Result
 #: Relative reduction of the loss per iteration below which L-BFGS-B stops (a few
 #: units of rounding: the loss cannot decrease further); counted as converged.
 FTOL = 1e-15
+#: A run stopped by :data:`FTOL` with the loss below this fraction of its value at the
+#: run's start is restarted with the loss rescaled (L-BFGS-B's test is then absolute).
+RESCALE_BELOW = 1e-3
+#: Restarts of that kind (each keeps the point, not the correction pairs).
+MAX_RESTARTS = 8
 #: Evaluations kept to return the final point's auxiliary output without re-evaluating.
 _KEPT = 8
 
@@ -47,6 +53,20 @@ def projected_gradient(x, g, lower, upper) -> np.ndarray:
     """``P(x − g) − x``: the gradient with the components that point out of the box at
     an active bound removed (zero exactly at a bound-constrained stationary point)."""
     return np.clip(x - g, lower, upper) - x
+
+
+def _recorder(history: np.ndarray, steps: int, scale: float):
+    """L-BFGS-B's callback (SciPy recognises the parameter name ``intermediate_result``):
+    the loss after each iteration, in the caller's units, into ``history`` after the
+    ``steps`` iterations of earlier runs."""
+    counter = [steps]
+
+    def record(intermediate_result):
+        counter[0] += 1
+        if counter[0] < history.size:
+            history[counter[0]] = intermediate_result.fun * scale
+
+    return record
 
 
 def lbfgsb(
@@ -99,39 +119,42 @@ def lbfgsb(
     # a non-finite trial is a wall: well above the start, flat (L-BFGS-B backtracks)
     state["penalty"] = abs(f0) * 1e6 + 1e6
 
-    def objective(x):
+    def objective(x, scale):
         f, g, _ = evaluate(x)
         if np.isfinite(f) and np.all(np.isfinite(g)):
-            return f, g
-        return state["penalty"], np.zeros_like(g)
+            return f / scale, g / scale
+        return state["penalty"] / scale, np.zeros_like(g)
 
     history[0] = f0
-    iteration = [0]
-
-    def step_done(intermediate_result):
-        iteration[0] += 1
-        if iteration[0] < max_steps:
-            history[iteration[0]] = intermediate_result.fun
-
-    result = minimize(
-        objective,
-        x0,
-        jac=True,
-        method="L-BFGS-B",
-        bounds=Bounds(lower, upper),
-        callback=step_done,
-        options={
-            "maxiter": max_steps,
-            "maxfun": (MAX_BACKTRACKS + 2) * max_steps,
-            "gtol": gtol,
-            "ftol": FTOL,
-            "maxcor": memory,
-        },
-    )
-    x = np.clip(np.asarray(result.x, dtype=float), lower, upper)
-    f, g, aux = evaluate(x)
-    steps = int(result.nit)
+    x, f, g, steps, converged = x0, f0, g0, 0, False
+    for _ in range(MAX_RESTARTS + 1):
+        # L-BFGS-B's FTOL test is relative to max(|f|, 1): the loss is divided by its
+        # value at the start of each run, so that the test stays relative as it falls
+        scale = abs(f) if f != 0.0 else 1.0
+        result = minimize(
+            partial(objective, scale=scale),
+            x,
+            jac=True,
+            method="L-BFGS-B",
+            bounds=Bounds(lower, upper),
+            callback=_recorder(history, steps, scale),
+            options={
+                "maxiter": max_steps - steps,
+                "maxfun": (MAX_BACKTRACKS + 2) * (max_steps - steps),
+                "gtol": gtol / scale,
+                "ftol": FTOL,
+                "maxcor": memory,
+            },
+        )
+        x = np.clip(np.asarray(result.x, dtype=float), lower, upper)
+        f, g, aux = evaluate(x)
+        steps += int(result.nit)
+        stationary = np.max(np.abs(projected_gradient(x, g, lower, upper)), initial=0.0) <= gtol
+        # stopped by FTOL: converged, unless the loss fell far below the run's scale
+        # (then the test was absolute, not relative): another run, rescaled
+        rounding = result.status == 0 and abs(f) >= RESCALE_BELOW * scale
+        converged = bool(np.isfinite(f) and (stationary or rounding))
+        if converged or result.status != 0 or steps >= max_steps or not np.isfinite(f):
+            break
     history[steps:] = np.nan
-    stationary = np.max(np.abs(projected_gradient(x, g, lower, upper)), initial=0.0) <= gtol
-    converged = bool(np.isfinite(f) and (stationary or result.status == 0))
     return Result(x, f, g, aux, steps, state["evaluations"], converged, history)
