@@ -12,7 +12,10 @@ variable may start *at* its bound.
 
 It stops when the projected gradient's largest component is at most ``gtol``, or when
 an iteration lowers the loss by less than :data:`FTOL` relative (rounding: the point is
-then accurate to about ``√FTOL`` relative in a well-conditioned problem).
+then accurate to about ``√FTOL`` relative in a well-conditioned problem). SciPy's test
+is relative to ``max(|f|, 1)``, i.e. absolute for a small loss, such as a balancing
+loss falling towards zero: each run therefore sees the loss divided by its value at the
+run's start, and a run stopped by that test far below it is restarted, rescaled.
 
 ``fun`` is called on the host with a NumPy point and returns NumPy values; a point where
 the loss or its gradient is not finite (a line-search trial far outside the useful
