@@ -22,7 +22,7 @@ within the relative tolerance :data:`FEASIBILITY_RTOL`.
 
 **Bounds.** The default optimiser, L-BFGS-B, holds them itself and optimises the
 design variables directly, so a loss quadratic in them (RMS force, added mass and
-inertia of counter-masses) stays quadratic (3–4× fewer evaluations than the bound map
+inertia of counter-masses) stays quadratic (2–4× fewer evaluations than the bound map
 below, measured in ``benchmarks/codesign_bench.py``). An optax optimiser is
 unconstrained, so with ``optimizer=`` the bounds are a smooth reparametrisation:
 ``x = lower + r²`` below only and ``x = lower + (upper − lower) sin² r`` with both.
