@@ -256,7 +256,7 @@ def test_codesign_cannot_reach_a_negative_mass(name, scara_case):
 
 
 def test_default_optimiser_agrees_with_optax_lbfgs(scara_case):
-    """The default co-design (host-driven L-BFGS, jaxbal._src.lbfgs) and the compiled
+    """The default co-design (host-driven L-BFGS-B, jaxbal._src.lbfgsb) and the compiled
     optax L-BFGS (optimizer=optax.lbfgs()) reach the same SCARA optimum (RMS force plus
     added mass, three counter-masses): designs to 1e-7 relative, losses to 1e-10, same
     starting metrics and initial loss."""
