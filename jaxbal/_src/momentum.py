@@ -175,13 +175,17 @@ def checked_finite(what: str, robot: Robot, value):
     inputs overflows when a parameter or the state is too large (a 1e300 m link).
     Eagerly the ``ValueError`` names the largest robot parameter."""
     leaves = jax.tree_util.tree_leaves(value)
-    invalid = ~jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in leaves]))
     message = f"{what} is not finite (overflow: robot parameters or state too large)"
-    if not is_traced(invalid, leaves) and bool(invalid):
+    if not is_traced(leaves):  # in NumPy: no small JAX operations dispatched eagerly
+        arrays = [np.asarray(x) for x in leaves]
+        if all(np.all(np.isfinite(x)) for x in arrays):
+            return value
         parameters = [(n, np.max(np.abs(x), initial=0.0)) for n, x in _parameters(robot)]
         if parameters:
             name, size = max(parameters, key=lambda item: item[1])
             message += f"; largest robot parameter: {name} with |x| = {size:.3g}"
+        raise ValueError(f"{message}: {np.concatenate([np.ravel(x) for x in arrays])!r}")
+    invalid = ~jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in leaves]))
     return guard(value, invalid, message, jnp.concatenate([jnp.ravel(x) for x in leaves]))
 
 

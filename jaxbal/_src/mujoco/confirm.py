@@ -157,8 +157,8 @@ def confirm(
         raise ValueError(f"engine must be 'mujoco' or 'mjx', got {engine!r}")
     force_error = float(np.max(np.abs(np.asarray(force) - np.asarray(ref_force))))
     moment_error = float(np.max(np.abs(np.asarray(moment) - np.asarray(ref_moment))))
-    force_scale = max(float(jnp.max(jnp.abs(ref_force))), float(gross_force), 1e-300)
-    moment_scale = max(float(jnp.max(jnp.abs(ref_moment))), float(gross_moment), 1e-300)
+    force_scale = max(float(np.max(np.abs(ref_force))), float(gross_force), 1e-300)
+    moment_scale = max(float(np.max(np.abs(ref_moment))), float(gross_moment), 1e-300)
     return Confirmation(
         force_relative=force_error / force_scale,
         moment_relative=moment_error / moment_scale,

@@ -36,7 +36,7 @@ from __future__ import annotations
 import contextlib
 import functools
 import io
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import equinox as eqx
 import jax
@@ -44,11 +44,11 @@ import jax.numpy as jnp
 import mujoco
 import numpy as np
 
-with contextlib.redirect_stdout(io.StringIO()):  # MJX prints "Failed to import warp" (harmless)
+if TYPE_CHECKING:
     from mujoco import mjx
 
 from jaxbal._src.mujoco.closure import close_loops, closure_index, position_gap
-from jaxbal._src.mujoco.mjcf import BASE_MASS, mujoco_inertials, to_mjcf
+from jaxbal._src.mujoco.mjcf import BASE_MASS, host_bodies, mujoco_inertials, to_mjcf
 from jaxbal._src.mujoco.tree import Tree, tree_state
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Coordinates, Vec3
@@ -228,16 +228,26 @@ class MjxRobot(eqx.Module):
     gravity: jax.Array
 
 
+@functools.cache
+def _mjx():
+    """``mujoco.mjx``, imported on first use: it takes ~0.5 s to import, which a check
+    with MuJoCo C (the default engine) does not need."""
+    with contextlib.redirect_stdout(io.StringIO()):  # prints "Failed to import warp"
+        from mujoco import mjx
+    return mjx
+
+
 def mjx_model(robot: Robot, gravity=None, tree: Tree | None = None) -> MjxRobot:
     """Compile a concrete ``robot`` for MJX (see :func:`mujoco_model`)."""
     compiled = mujoco_model(robot, gravity, tree)
     model = compiled.model
-    bodies = robot.mass_properties()
+    bodies = host_bodies(robot)
     body_ids = tuple(model.body(name).id for name in bodies.names)
     inertials = mujoco_inertials(robot, compiled.tree)
     subtree = np.eye(model.nbody)
     for b in range(model.nbody - 1, 0, -1):
         subtree[model.body_parentid[b]] += subtree[b]
+    mjx = _mjx()
     mjx_m = mjx.put_model(model, impl="jax")
     return MjxRobot(
         model=mjx_m,
@@ -292,7 +302,7 @@ def mjx_base_reaction(
         qvel=jnp.concatenate([base, qvel]),
         qacc=jnp.concatenate([base, qacc]),
     )
-    data = mjx.inverse(with_mass_properties(compiled, robot), data)
+    data = _mjx().inverse(with_mass_properties(compiled, robot), data)
     force = -data.qfrc_inverse[0:3] - BASE_MASS * compiled.gravity
     return force, -data.qfrc_inverse[3:6]
 

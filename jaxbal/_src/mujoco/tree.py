@@ -25,6 +25,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -166,33 +167,36 @@ def tree_state(tree: Tree, q, qd, qdd):
     return qpos, qvel, qacc
 
 
-def matrix_to_quat(rotation):
+def matrix_to_quat(rotation, xp=jnp):
     """Unit quaternion ``(w, x, y, z)`` of a rotation matrix (Shepperd, branch-free).
 
     The largest of the four candidate components is chosen with ``argmax`` so the
     division is well conditioned; the result is differentiable almost everywhere.
+    ``xp``: the array module, ``jax.numpy`` (traceable) or ``numpy`` (host code such as
+    the MJCF writer: eagerly, each of the ~40 small JAX operations is a dispatch, the
+    first ones a compilation, ~0.1 s per matrix in a fresh process).
     """
     r = rotation
     trace = r[0, 0] + r[1, 1] + r[2, 2]
-    candidates = jnp.stack(
+    candidates = xp.stack(
         [
-            jnp.stack([1 + trace, r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]]),
-            jnp.stack(
+            xp.stack([1 + trace, r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1]]),
+            xp.stack(
                 [r[2, 1] - r[1, 2], 1 + 2 * r[0, 0] - trace, r[0, 1] + r[1, 0], r[0, 2] + r[2, 0]]
             ),
-            jnp.stack(
+            xp.stack(
                 [r[0, 2] - r[2, 0], r[0, 1] + r[1, 0], 1 + 2 * r[1, 1] - trace, r[1, 2] + r[2, 1]]
             ),
-            jnp.stack(
+            xp.stack(
                 [r[1, 0] - r[0, 1], r[0, 2] + r[2, 0], r[1, 2] + r[2, 1], 1 + 2 * r[2, 2] - trace]
             ),
         ]
     )
-    diag = jnp.stack([trace, r[0, 0], r[1, 1], r[2, 2]])
-    k = jnp.argmax(diag)
+    diag = xp.stack([trace, r[0, 0], r[1, 1], r[2, 2]])
+    k = xp.argmax(diag)
     row = candidates[k]
-    quat = row / (2.0 * jnp.sqrt(jnp.maximum(row[k], 1e-300)))
-    return quat * jnp.sign(quat[0] + (quat[0] == 0))
+    quat = row / (2.0 * xp.sqrt(xp.maximum(row[k], 1e-300)))
+    return quat * xp.sign(quat[0] + (quat[0] == 0))
 
 
 def minimal_rotation_quat(a, d):
@@ -215,7 +219,9 @@ def prescribed_tree(robot) -> Tree:
     velocity in the body frame, not the derivative of its quaternion).
     """
     bodies = ()
-    for name in robot.mass_properties().names:
+    # the names only: traced abstractly (eagerly the masses and inertias would run
+    # operation by operation, each a compilation in a fresh process)
+    for name in eqx.filter_eval_shape(lambda r: r.mass_properties(), robot).names:
         slides = tuple(
             Joint(f"{name}_{a}", "slide", tuple(float(x) for x in ax))
             for a, ax in zip("xyz", np.eye(3), strict=True)

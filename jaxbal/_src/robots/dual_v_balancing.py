@@ -23,6 +23,7 @@ from __future__ import annotations
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 import jaxbal
 from jaxbal._src.robots.dual_v import DualV
@@ -47,7 +48,7 @@ __all__ = [
     "with_counter_mass_moments",
 ]
 
-BALANCE_NULL_DIRECTION = jnp.array([-1.0, 1.0, 1.0, -1.0]) / 2.0
+BALANCE_NULL_DIRECTION = np.array([-1.0, 1.0, 1.0, -1.0]) / 2.0
 
 
 def balance_condition_eq1(robot: DualV) -> Float[Array, "4"]:

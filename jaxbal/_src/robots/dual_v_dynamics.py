@@ -59,7 +59,7 @@ __all__ = [
 ]
 
 # body indices of arm i (link i1, link i2, counter-mass, tuning mass, rotor)
-ARM_BODIES = jnp.array([[i, 4 + i, 10 + i, 14 + i, 18 + i] for i in range(4)])
+ARM_BODIES = np.array([[i, 4 + i, 10 + i, 14 + i, 18 + i] for i in range(4)])
 
 
 def _pinv_transpose(jacobian):

@@ -19,8 +19,8 @@ from jaxbal._src.mujoco.tree import Connect, Joint, Tree, TreeBody, Z, vec
 
 OUTWARD = (1, -1, 1, -1)
 CROSSED = (-1, 1, -1, 1)
-BASE_SIDE = jnp.array([1.0, -1.0, -1.0, 1.0])  # x sign of A_i
-PLATFORM_END = jnp.array([1.0, 1.0, -1.0, -1.0])  # s_i: y sign of A_i and end of C_i
+BASE_SIDE = np.array([1.0, -1.0, -1.0, 1.0])  # x sign of A_i
+PLATFORM_END = np.array([1.0, 1.0, -1.0, -1.0])  # s_i: y sign of A_i and end of C_i
 N_COORDINATES = 11
 
 

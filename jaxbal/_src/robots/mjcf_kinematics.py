@@ -21,11 +21,12 @@ References:
 from __future__ import annotations
 
 import jax.numpy as jnp
+import numpy as np
 
 from jaxbal._src.linalg import cos_sin, matvec, skew
 from jaxbal._src.types import Array, Float
 
-_EYE = jnp.eye(3)
+_EYE = np.eye(3)
 
 
 def matmul(a: Float[Array, "3 3"], b: Float[Array, "3 3"]) -> Float[Array, "3 3"]:

@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import equinox as eqx
 import jax.numpy as jnp
+import numpy as np
 
 from jaxbal._src.implicit import newton_solve
 from jaxbal._src.linalg import skew
@@ -69,9 +70,9 @@ from jaxbal._src.validation import (
 
 __all__ = ["COUNTER_SLIDERS", "Orthoglide", "motion_cases", "orthoglide", "switching_times"]
 
-_EYE = jnp.eye(3)
+_EYE = np.eye(3)
 # A_i - B_i = l * _SLIDER_DIRECTIONS[i]  (§2.2: A_1 = (ρ_x + l, 0, l), …)
-_SLIDER_DIRECTIONS = jnp.array([[1.0, 0.0, 1.0], [1.0, 1.0, 0.0], [0.0, 1.0, 1.0]])
+_SLIDER_DIRECTIONS = np.array([[1.0, 0.0, 1.0], [1.0, 1.0, 0.0], [0.0, 1.0, 1.0]])
 
 
 def _minimal_rotation(e0, d):
