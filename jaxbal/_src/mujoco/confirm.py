@@ -21,13 +21,13 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.linalg import vee
-from jaxbal._src.momentum import shaking_wrench
+from jaxbal._src.momentum import check_robot, checked_finite, shaking_wrench
 from jaxbal._src.motion import state_valid
 from jaxbal._src.mujoco.inverse import base_reaction_and_closure, mjx_base_reaction, mjx_model
 from jaxbal._src.mujoco.tree import Tree
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import sample
-from jaxbal._src.validation import raise_if_invalid
+from jaxbal._src.validation import raise_if_invalid, runtime_checks
 
 #: Largest gap [rad or m] between MuJoCo's own loop closure and the given ``q``.
 CLOSURE_GAP = 1e-6
@@ -70,7 +70,10 @@ class Confirmation(NamedTuple):
 @jax.jit
 def _reference_and_scales(robot: Robot, q, qd, qdd, g):
     """jaxbal's shaking wrench ``(T, 3)`` ×2, the gross scales (see :func:`confirm`) and
-    the validity of every state (finite, loop closures satisfied)."""
+    the validity of every state (finite, loop closures satisfied). Traced without the
+    runtime checks (:func:`confirm` checks the robot, the states and the results on the
+    host): a program without host callbacks, which the persistent compilation cache
+    keeps for the next process."""
     force, moment = jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c, gravity=g))(q, qd, qdd)
     valid = jax.vmap(lambda a, b, c: state_valid(robot, a, b, c))(q, qd, qdd)
     return force, moment, *_gross_scales(robot, q, qd, qdd, g), valid
@@ -128,15 +131,18 @@ def confirm(
     """
     q, qd, qdd = (jnp.atleast_2d(jnp.asarray(a, dtype=float)) for a in (q, qd, qdd))
     g = jnp.zeros(3) if gravity is None else jnp.asarray(gravity, dtype=float)
-    ref_force, ref_moment, gross_force, gross_moment, valid = _reference_and_scales(
-        robot, q, qd, qdd, g
-    )
+    check_robot(robot)
+    with runtime_checks(False):
+        ref_force, ref_moment, gross_force, gross_moment, valid = _reference_and_scales(
+            robot, q, qd, qdd, g
+        )
     raise_if_invalid(
         valid,
         f"confirm: states violate the loop closures of {type(robot).__name__} (or are not "
         "finite); first bad q",
         q,
     )
+    checked_finite("shaking wrench", robot, (ref_force, ref_moment))
     closure, closed = 0.0, False
     if engine == "mujoco":
         tree = robot.mujoco_tree() if tree is None else tree
