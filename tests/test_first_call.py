@@ -131,3 +131,51 @@ def test_confirm_reference_has_no_host_callback_and_bad_robot_raises():
     bad = eqx.tree_at(lambda r: r.masses, robot, robot.masses.at[0].set(-1.0))
     with pytest.raises(ValueError, match="-1"):
         jaxbal.mujoco.confirm(bad, *motion)
+
+
+def _arm(links: int):
+    lengths = np.linspace(0.3, 0.1, links)
+    return jaxbal.robots.PlanarArm(
+        lengths=lengths,
+        com_ratios=np.full(links, 0.4),
+        masses=10.0 * lengths,
+        inertias=10.0 * lengths**3 / 12.0,
+        payload=1.0,
+        counter_distances=np.full(links, 0.1),
+    )
+
+
+def test_eager_wrench_and_com_are_one_program_each_with_the_eager_errors():
+    """An eager ``shaking_wrench`` / ``center_of_mass`` compiles one program per robot
+    structure (none for other parameter values), equals the compiled call, and keeps
+    the eager errors: a non-finite state, a negative mass set with ``eqx.tree_at``, a
+    wrong shape and an overflow are ``ValueError`` naming the value."""
+    robot = _arm(6)  # a structure no other test compiles
+    state = [np.linspace(-1.0, 1.0, 6) * k for k in (0.5, 2.0, -3.0)]
+    before = len(_COMPILES)
+    force, moment = jaxbal.shaking_wrench(robot, *state, gravity=(0.0, -9.81, 0.0))
+    com = jaxbal.center_of_mass(robot, state[0])
+    assert len(_COMPILES) - before <= 2
+    other = eqx.tree_at(lambda r: r.masses, robot, robot.masses * 1.5)
+    before = len(_COMPILES)
+    jaxbal.shaking_wrench(other, *state, gravity=(0.0, -9.81, 0.0))
+    jaxbal.center_of_mass(other, state[0])
+    assert len(_COMPILES) == before
+    g = jnp.array([0.0, -9.81, 0.0])
+    expected = jax.jit(lambda *s: jaxbal.shaking_wrench(robot, *s, gravity=g))(*state)
+    scale = np.max(np.abs(np.asarray(expected[0])))
+    np.testing.assert_allclose(force, expected[0], rtol=0, atol=1e-13 * scale)
+    np.testing.assert_allclose(moment, expected[1], rtol=0, atol=1e-13 * scale)
+    np.testing.assert_allclose(com, jax.jit(jaxbal.center_of_mass)(robot, state[0]), atol=1e-15)
+    with pytest.raises(ValueError, match="non-finite state"):
+        jaxbal.shaking_wrench(robot, state[0] * np.nan, *state[1:])
+    bad = eqx.tree_at(lambda r: r.payload, robot, jnp.asarray(-2.0))
+    with pytest.raises(ValueError, match="non-negative"):
+        jaxbal.shaking_wrench(bad, *state)
+    with pytest.raises(ValueError, match="non-negative"):
+        jaxbal.center_of_mass(bad, state[0])
+    with pytest.raises(ValueError, match="shape"):
+        jaxbal.shaking_wrench(robot, state[0][:-1], *state[1:])
+    huge = eqx.tree_at(lambda r: r.masses, robot, robot.masses * 1e307)
+    with pytest.raises(ValueError, match="overflow"):
+        jaxbal.shaking_wrench(huge, *state)

@@ -121,11 +121,10 @@ def _rms(vectors: Float[Array, "t k"]) -> Scalar:
     return scale * jnp.where(positive, jnp.sqrt(jnp.where(positive, mean_square, 1.0)), 0.0)
 
 
-#: the reductions compiled, for eager calls: run operation by operation, each of their
-#: ~10 small operations is a dispatch and, in a fresh process, a compilation of its own
-#: (~0.5 s in all for an eager ``peak_force`` on the 2-core CPU)
+#: the RMS compiled, for eager calls: run operation by operation, each of its ~10 small
+#: operations is a dispatch and, in a fresh process, a compilation of its own (so is
+#: :func:`peak_norm` called eagerly)
 _rms_compiled = jax.jit(_rms)
-_peak_norm_compiled = jax.jit(peak_norm)
 
 
 def _rms_of(vectors: Float[Array, "t k"]) -> Scalar:
@@ -148,7 +147,7 @@ def _peak(evaluate, pick, robot: Robot, motion: Motion, what: str) -> Scalar:
     """
     motion = as_motion(motion)
     if not is_traced(robot, motion):
-        return _peak_norm_compiled(pick(batched(evaluate, robot, motion, what)))
+        return peak_norm(pick(batched(evaluate, robot, motion, what)))
     return _peak_traced(evaluate, pick, robot, motion)
 
 

@@ -24,6 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._src.eager import run_compiled
 from jaxbal._src.linalg import (
     cross,
     matmul_transposed,
@@ -230,6 +231,12 @@ def center_of_mass(robot: Robot, q: Coordinates) -> Vec3:
             (:func:`jaxbal.set_runtime_checks`). Before, these gave a silent NaN or a
             wrong centre of mass (negative masses).
     """
+    if not is_traced(robot, q):
+        return run_compiled(_center_of_mass, robot_faulty, robot, q)
+    return _center_of_mass(robot, q)
+
+
+def _center_of_mass(robot: Robot, q: Coordinates) -> Vec3:
     q = jnp.asarray(q, dtype=float)
     bodies = robot.mass_properties()
     positions = body_com_positions(robot, q)
@@ -306,7 +313,15 @@ def shaking_wrench(
     References:
         Briot et al. (2012), eq (1); van der Wijk et al. (2013), section 2.
     """
+    if not is_traced(robot, q, qd, qdd, gravity):
+        return run_compiled(_wrench_of_one_state, robot_faulty, robot, q, qd, qdd, gravity)
     return _shaking_wrench(robot, q, qd, qdd, gravity)
+
+
+def _wrench_of_one_state(robot: Robot, q, qd, qdd, gravity):
+    # one state: evaluated as written (the replay's gain is fusing its scalar code across
+    # a batch; for one state it compiles to more kernels than the array code)
+    return _shaking_wrench(robot, q, qd, qdd, gravity, replay=False)
 
 
 #: whether traced evaluations of the wrench are replayed as straight-line code

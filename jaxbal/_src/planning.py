@@ -34,7 +34,7 @@ from jaxbal._src.profiles import Profile
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import StraightLine, sample
 from jaxbal._src.types import Array, Float, ScalarLike
-from jaxbal._src.validation import check_shape, checked_call, raise_if_invalid
+from jaxbal._src.validation import check_shape, checked_call, is_traced, raise_if_invalid
 
 
 class EndEffectorLine(eqx.Module):
@@ -181,12 +181,21 @@ def peak_norm(vectors: Float[Array, "t 3"]) -> Float[Array, ""]:
     """
     if jnp.ndim(vectors) != 2 or jnp.shape(vectors)[0] == 0:
         raise ValueError(f"vectors must have shape (t, k) with t >= 1, got {jnp.shape(vectors)}")
+    if not is_traced(vectors):  # one compiled program, not ~10 eager operations
+        return _peak_norm_compiled(jnp.asarray(vectors))
+    return _peak_norm(vectors)
+
+
+def _peak_norm(vectors):
     big = jax.lax.stop_gradient(jnp.max(jnp.abs(vectors)))
     scale = jnp.where(big > 1e150, big, 1.0)
     squared = jnp.sum((vectors / scale) ** 2, axis=-1)
     positive = squared > 0.0
     norms = jnp.where(positive, jnp.sqrt(jnp.where(positive, squared, 1.0)), 0.0)
     return scale * jnp.max(norms)
+
+
+_peak_norm_compiled = jax.jit(_peak_norm)
 
 
 def smooth_peak(values: Float[Array, " t"], temperature: ScalarLike) -> Float[Array, ""]:
