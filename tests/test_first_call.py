@@ -169,13 +169,12 @@ def test_eager_wrench_and_com_are_one_program_each_with_the_eager_errors():
     np.testing.assert_allclose(com, jax.jit(jaxbal.center_of_mass)(robot, state[0]), atol=1e-15)
     with pytest.raises(ValueError, match="non-finite state"):
         jaxbal.shaking_wrench(robot, state[0] * np.nan, *state[1:])
-    bad = eqx.tree_at(lambda r: r.payload, robot, jnp.asarray(-2.0))
-    with pytest.raises(ValueError, match="non-negative"):
-        jaxbal.shaking_wrench(bad, *state)
-    with pytest.raises(ValueError, match="non-negative"):
-        jaxbal.center_of_mass(bad, state[0])
     with pytest.raises(ValueError, match="shape"):
         jaxbal.shaking_wrench(robot, state[0][:-1], *state[1:])
-    huge = eqx.tree_at(lambda r: r.masses, robot, robot.masses * 1e307)
+    # the fallbacks run operation by operation: checked on the centre of mass, cheaper
+    bad = eqx.tree_at(lambda r: r.payload, robot, jnp.asarray(-2.0))
+    with pytest.raises(ValueError, match="non-negative"):
+        jaxbal.center_of_mass(bad, state[0])
+    huge = eqx.tree_at(lambda r: r.lengths, robot, robot.lengths * 1e308)
     with pytest.raises(ValueError, match="overflow"):
-        jaxbal.shaking_wrench(huge, *state)
+        jaxbal.center_of_mass(huge, state[0])
