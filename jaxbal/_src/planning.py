@@ -26,6 +26,7 @@ from collections.abc import Callable
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxbal._src.com_ik import com_inverse_kinematics
 from jaxbal._src.dynamics import inverse_dynamics, inverse_dynamics_rate
@@ -129,12 +130,21 @@ def com_line(
     for name, q in (("q_start", q_start), ("q_end", q_end)):
         check_shape(name, q, (robot.dof,))
         raise_if_invalid(jnp.all(jnp.isfinite(q)), f"{name} must be finite", q)
-    positive = jnp.isfinite(jnp.asarray(duration, float)) & (jnp.asarray(duration, float) > 0)
-    raise_if_invalid(positive, "duration must be finite and > 0 [s]", duration)
+    if not is_traced(duration):  # NumPy: no eager JAX operations (each one a compile)
+        positive = np.isfinite(np.asarray(duration, float)) & (np.asarray(duration, float) > 0)
+        raise_if_invalid(positive, "duration must be finite and > 0 [s]", duration)
     start = center_of_mass(robot, q_start)[:dims]
     end = center_of_mass(robot, q_end)[:dims]
-    poses = StraightLine(robot.end_effector(q_start), robot.end_effector(q_end), profile, duration)
+    poses = StraightLine(*_end_effectors(robot, q_start, q_end), profile, duration)
     return ComLine(robot, StraightLine(start, end, profile, duration), free, branch, poses)
+
+
+@eqx.filter_jit
+def _end_effectors(robot: Robot, q_start, q_end):
+    """The end-effector poses of both configurations, compiled (eagerly the robot's
+    forward kinematics ran operation by operation, ~10 compilations in a fresh
+    process)."""
+    return robot.end_effector(q_start), robot.end_effector(q_end)
 
 
 def wrench_along(
