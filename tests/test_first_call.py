@@ -134,15 +134,9 @@ def test_confirm_reference_has_no_host_callback_and_bad_robot_raises():
 
 
 def _arm(links: int):
-    lengths = np.linspace(0.3, 0.1, links)
-    return jaxbal.robots.PlanarArm(
-        lengths=lengths,
-        com_ratios=np.full(links, 0.4),
-        masses=10.0 * lengths,
-        inertias=10.0 * lengths**3 / 12.0,
-        payload=1.0,
-        counter_distances=np.full(links, 0.1),
-    )
+    """A ``links``-link planar arm of equal 0.2 m, 2 kg links."""
+    ones = np.ones(links)
+    return jaxbal.robots.PlanarArm(0.2 * ones, 0.5 * ones, 2.0 * ones, 0.01 * ones, payload=0.5)
 
 
 def test_eager_wrench_and_com_are_one_program_each_with_the_eager_errors():
