@@ -68,13 +68,9 @@ def test_inverse_kinematics_refuses_an_unreachable_pose_under_jit(name):
 def test_sampling_program_has_no_host_callback_and_raises_the_named_error():
     robot = jaxbal.robots.planar_2r()
     path = EndEffectorLine(robot, _line((0.4, 0.3), (0.2, 0.5)))
-    previous = validation._FUNCTIONAL[0]
-    validation._FUNCTIONAL[0] = True
-    try:
-        program = validation.checked_jit(_sample).compiled(True)
+    with validation._FUNCTIONAL(True):
+        program = validation.checked_jit(_sample).compiled("functional")
         text = program.lower(robot, path, TIMES, 2).as_text()
-    finally:
-        validation._FUNCTIONAL[0] = previous
     assert "callback" not in text.lower()
     assert "sine" in text  # the program samples the move
     # a duration made negative by eqx.tree_at: the functional check names it
@@ -125,12 +121,8 @@ def test_checked_jit_of_a_user_gradient_equals_jit_has_no_callback_and_names_err
     for name in design:
         assert np.all(np.isfinite(np.asarray(ours[name])))
         np.testing.assert_allclose(np.asarray(ours[name]), np.asarray(reference[name]), rtol=1e-12)
-    previous = validation._FUNCTIONAL[0]
-    validation._FUNCTIONAL[0] = True
-    try:
-        text = checked.compiled(True).lower(design).as_text()
-    finally:
-        validation._FUNCTIONAL[0] = previous
+    with validation._FUNCTIONAL(True):
+        text = checked.compiled("functional").lower(design).as_text()
     assert "callback" not in text.lower()
     # a negative counter-mass (as an optimiser could set it): the named ValueError
     bad = {**design, "counter_mass": jnp.asarray([-1.0, 0.5])}

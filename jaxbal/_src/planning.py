@@ -147,34 +147,47 @@ def _end_effectors(robot: Robot, q_start, q_end):
     return robot.end_effector(q_start), robot.end_effector(q_end)
 
 
-@eqx.filter_jit
 def wrench_along(
     robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
 ) -> tuple[Float[Array, "t 3"], Float[Array, "t 3"]]:
     """Shaking force ``(t, 3)`` [N] and moment ``(t, 3)`` [N·m] along a trajectory.
 
-    Compiled (``eqx.filter_jit``): a boundary function. It recompiles only when the
-    structure of ``robot``/``path`` changes (a new Python callable inside ``path``
-    counts as a new structure), not for new parameter values.
+    A boundary function: compiled once per structure of ``robot``/``path`` (a new
+    Python callable inside ``path`` counts as a new structure), not for new parameter
+    values, through :func:`~jaxbal.checked_jit` (a failed check, e.g. an unreachable
+    pose, raises a ``ValueError`` naming it; the program, free of host callbacks, is
+    kept by the persistent compilation cache for the next process).
     """
+    return checked_call(_wrench_along, robot, path, times, gravity)
+
+
+def _wrench_along(robot: Robot, path: Callable, times, gravity):
     q, qd, qdd = sample(path, times, order=2)
     return jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c, gravity))(q, qd, qdd)
 
 
-@eqx.filter_jit
 def torques_along(
     robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
 ) -> Float[Array, "t dof"]:
-    """Actuator torques ``τ`` ``(t, dof)`` [N·m] along a trajectory (serial arms)."""
+    """Actuator torques ``τ`` ``(t, dof)`` [N·m] along a trajectory (serial arms);
+    compiled as :func:`wrench_along`."""
+    return checked_call(_torques_along, robot, path, times, gravity)
+
+
+def _torques_along(robot: Robot, path: Callable, times, gravity):
     q, qd, qdd = sample(path, times, order=2)
     return jax.vmap(lambda a, b, c: inverse_dynamics(robot, a, b, c, gravity))(q, qd, qdd)
 
 
-@eqx.filter_jit
 def torque_rate_along(
     robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
 ) -> Float[Array, "t dof"]:
-    """Actuator torque rates ``dτ/dt`` ``(t, dof)`` [N·m/s] along a trajectory (serial arms)."""
+    """Actuator torque rates ``dτ/dt`` ``(t, dof)`` [N·m/s] along a trajectory (serial
+    arms); compiled as :func:`wrench_along`."""
+    return checked_call(_torque_rate_along, robot, path, times, gravity)
+
+
+def _torque_rate_along(robot: Robot, path: Callable, times, gravity):
     q, qd, qdd, qddd = sample(path, times, order=3)
     return jax.vmap(lambda a, b, c, d: inverse_dynamics_rate(robot, a, b, c, d, gravity))(
         q, qd, qdd, qddd

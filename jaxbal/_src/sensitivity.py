@@ -36,7 +36,7 @@ import numpy as np
 from jaxbal._src.metrics import Metric, Motion, as_motion, check_design_names, resolve_metric
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
-from jaxbal._src.validation import runtime_checks
+from jaxbal._src.validation import checked_call, runtime_checks
 
 __all__ = ["Sensitivity", "payload_sensitivity", "sensitivity"]
 
@@ -66,8 +66,11 @@ def _metric_at(design: dict[str, Array], robot: Robot, motion, metric) -> Scalar
     return resolve_metric(metric)(candidate, as_motion(sampled))
 
 
-@eqx.filter_jit
 def _value_and_grad(design, robot, motion, metric):
+    """Value and gradient of the metric; run through :func:`~jaxbal.checked_jit`
+    (:func:`~jaxbal._src.validation.checked_call`): a failed runtime check raises a
+    ``ValueError`` naming the value, and the program, free of host callbacks, is kept by
+    the persistent compilation cache (a second process loads it instead of compiling)."""
     return jax.value_and_grad(_metric_at)(design, robot, motion, metric)
 
 
@@ -144,7 +147,7 @@ def sensitivity(
             f"wrt names no design variable; {type(robot).__name__} has {sorted(design)}"
         )
     chosen = {name: jnp.asarray(design[name], dtype=float) for name in names}
-    value, gradient = _value_and_grad(chosen, robot, motion, metric)
+    value, gradient = checked_call(_value_and_grad, chosen, robot, motion, metric)
     for name, grad in gradient.items():
         if not np.all(np.isfinite(np.asarray(grad))):
             raise ValueError(

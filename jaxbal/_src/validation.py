@@ -85,7 +85,43 @@ def raise_if_invalid(valid, message: str, offending) -> None:
 
 # --- runtime value checks (eager and under jit) ---------------------------------------
 
-_RUNTIME_CHECKS = [True]
+
+class _TraceFlag:
+    """A switch read while tracing, part of JAX's trace and ``jit`` cache keys.
+
+    jaxbal's nested compiled functions (a Newton solve's ``jax.jit``, an
+    ``eqx.filter_jit`` called under another trace) are traced once per cache key, and
+    their jaxprs are reused by later traces. A plain Python switch is not in that key:
+    a solve first traced with the checks off (inside an optimiser) would then be reused,
+    unchecked, by a checked program. Backed by :func:`jax.make_user_context`, the switch
+    is in the key, so each setting traces (and compiles) its own program.
+    """
+
+    def __init__(self, default: bool):
+        make = getattr(jax, "make_user_context", None)
+        self._context = None if make is None else make(default_value=bool(default))
+        self._value = [bool(default)]  # without user contexts (older JAX)
+
+    @property
+    def value(self) -> bool:
+        return bool(self._context.value) if self._context is not None else self._value[0]
+
+    def set_global(self, enabled: bool) -> None:
+        if self._context is not None:
+            self._context.set_global(bool(enabled))
+        self._value[0] = bool(enabled)
+
+    @contextlib.contextmanager
+    def __call__(self, enabled: bool):
+        if self._context is not None:
+            with self._context(bool(enabled)):
+                yield
+            return
+        with switched(self._value, enabled):
+            yield
+
+
+_RUNTIME_CHECKS = _TraceFlag(True)
 
 
 def set_runtime_checks(enabled: bool) -> None:
@@ -95,12 +131,12 @@ def set_runtime_checks(enabled: bool) -> None:
     few comparisons per evaluation; they are read when a function is traced, so call
     this *before* compiling. Eager calls always check.
     """
-    _RUNTIME_CHECKS[0] = bool(enabled)
+    _RUNTIME_CHECKS.set_global(enabled)
 
 
 def runtime_checks_enabled() -> bool:
     """Whether compiled code checks values (see :func:`set_runtime_checks`)."""
-    return _RUNTIME_CHECKS[0]
+    return _RUNTIME_CHECKS.value
 
 
 def guard(value, invalid, message: str, offending, names=None):
@@ -121,7 +157,7 @@ def guard(value, invalid, message: str, offending, names=None):
         return value
     if not runtime_checks_enabled():
         return value
-    if _FUNCTIONAL[0]:
+    if _FUNCTIONAL.value:
         # braces of the message escaped: checkify formats it with the offending values
         text = message.replace("{", "{{").replace("}", "}}")
         checkify.check(~jnp.any(invalid), text + ": {}", offending)
@@ -130,7 +166,7 @@ def guard(value, invalid, message: str, offending, names=None):
 
 
 #: whether traced guards are functional checkify checks (:func:`checked_jit`).
-_FUNCTIONAL = [False]
+_FUNCTIONAL = _TraceFlag(False)
 
 
 def checked_jit(fn):
@@ -147,6 +183,13 @@ def checked_jit(fn):
     checks off (:func:`set_runtime_checks`) it is ``eqx.filter_jit(fn)``; called under
     a trace (traced arguments), it is ``fn`` itself.
 
+    ``checkify`` refuses a ``vmap`` of a ``lax.while_loop`` (e.g. Newton solves of
+    inverse kinematics along a batch of samples). For arguments of such a structure the
+    call falls back, once per structure, to the program with the checks as callbacks
+    (``eqx.filter_jit`` with :func:`equinox.error_if`): the same checks, a failed one
+    raised as a ``ValueError`` with its message (the offending values are not known to
+    the callback), compiled once per process instead of kept in the persistent cache.
+
     Example::
 
         grad = jaxbal.checked_jit(jax.grad(lambda d: peak_force(robot.with_design(d), motion)))
@@ -160,29 +203,84 @@ def checked_jit(fn):
         The checked, compiled function.
     """
     programs = {}
+    # structures of arguments for which checkify refused the program (batched while)
+    refused: set = set()
 
-    def compiled(functional: bool):
-        if functional not in programs:
-            body = checkify.checkify(fn, errors=checkify.user_checks) if functional else fn
-            programs[functional] = eqx.filter_jit(body)
-        return programs[functional]
+    def compiled(mode: str):
+        if mode not in programs:
+            if mode == "functional":
+                body = checkify.checkify(fn, errors=checkify.user_checks)
+            elif mode == "callback":
+                # a function of its own: equinox keys its compiled programs by function
+                body = functools.wraps(fn)(lambda *args: fn(*args))
+            else:
+                body = fn
+            programs[mode] = eqx.filter_jit(body)
+        return programs[mode]
 
     @functools.wraps(fn)
     def call(*args):
         if is_traced(args):
             return fn(*args)
         if not runtime_checks_enabled():
-            return compiled(False)(*args)
-        with switched(_FUNCTIONAL, True):
-            error, out = compiled(True)(*args)
-        message = error.get()
-        if message is not None:
-            # checkify appends " (`check` failed)" and the location on further lines
-            raise ValueError(message.split("\n")[0].strip().removesuffix(" (`check` failed)"))
-        return out
+            return compiled("unchecked")(*args)
+        key = _structure(args)
+        if key not in refused:
+            try:
+                with _FUNCTIONAL(True):
+                    error, out = compiled("functional")(*args)
+            except ValueError as refusal:
+                if _BATCHED_WHILE not in str(refusal):
+                    raise
+                refused.add(key)
+            else:
+                message = error.get()
+                if message is not None:
+                    # checkify appends " (`check` failed)" and the location on further lines
+                    text = message.split("\n")[0].strip()
+                    raise ValueError(text.removesuffix(" (`check` failed)"))
+                return out
+        try:
+            return compiled("callback")(*args)
+        except RuntimeError as failure:
+            message = _equinox_message(failure)
+            if message is None:
+                raise
+            raise ValueError(message) from failure
 
-    call.compiled = compiled  # the two programs, for inspection (tests)
+    call.compiled = compiled  # the programs, for inspection (tests)
+    call.refused = refused
     return call
+
+
+#: the start of the error ``checkify`` raises for a ``vmap`` of a ``while_loop``
+_BATCHED_WHILE = "Checkify does not support batched while-loops"
+
+
+def _equinox_message(failure: RuntimeError) -> str | None:
+    """The message of a failed :func:`equinox.error_if` check, if ``failure`` is one."""
+    marker = "EquinoxRuntimeError: "
+    text = str(failure)
+    if type(failure).__name__ != "EquinoxRuntimeError" or marker not in text:
+        return None
+    return text.split(marker, 1)[1].split("\n", 1)[0].strip()
+
+
+def _structure(args):
+    """Hashable structure of ``args`` as ``eqx.filter_jit`` sees it: tree, array
+    shapes and dtypes, other leaves by value (identity when unhashable)."""
+    leaves, tree = jax.tree_util.tree_flatten(args)
+
+    def key(leaf):
+        if eqx.is_array(leaf):
+            return ("array", np.shape(leaf), str(leaf.dtype))
+        try:
+            hash(leaf)
+        except TypeError:
+            return ("object", id(leaf))
+        return leaf
+
+    return tree, tuple(key(leaf) for leaf in leaves)
 
 
 _LIBRARY: dict = {}
@@ -204,7 +302,7 @@ def runtime_checks(enabled: bool):
     points on purpose (and reject them), while the reparametrised design variables
     cannot become negative; the starting design is checked before.
     """
-    with switched(_RUNTIME_CHECKS, enabled):
+    with _RUNTIME_CHECKS(enabled):
         yield
 
 
