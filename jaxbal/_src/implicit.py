@@ -39,7 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.types import Array, Float
-from jaxbal._src.validation import is_traced
+from jaxbal._src.validation import is_traced, runtime_checks
 
 __all__ = ["RootSolution", "newton_solve"]
 
@@ -60,22 +60,87 @@ class RootSolution(eqx.Module):
 
 def _newton_iterations(residual, x0, params, tol, max_steps):
     """Plain Newton iterations (not differentiated: wrapped by the custom_jvp)."""
-    jac = jax.jacfwd(residual, argnums=0)
+    unbatched = jax.tree_util.tree_map(lambda _: None, params)
+    return _newton_stack(residual, tol, max_steps, unbatched)(x0[None], params)[0]
 
-    def cond(state):
-        step, _, norm = state
-        return (step < max_steps) & (norm > tol)
 
-    def body(state):
-        step, x, _ = state
-        r = residual(x, params)
-        dx = jnp.linalg.solve(jac(x, params), r)
-        x_new = x - dx
-        return step + 1, x_new, jnp.max(jnp.abs(residual(x_new, params)))
+def _newton_stack(residual, tol, max_steps, axes):
+    """Newton iterations on a stack of ``n`` problems, as one ``while_loop``.
 
-    norm0 = jnp.max(jnp.abs(residual(x0, params)))
-    _, x, _ = jax.lax.while_loop(cond, body, (jnp.asarray(0), x0, norm0))
-    return x
+    The returned function maps ``xs (n, k)`` and ``params`` (leaves batched along their
+    first axis where ``axes`` says ``0``, shared where it says ``None``) to the roots
+    ``(n, k)``. The loop runs while *any* problem is unconverged and updates only those
+    (a converged or non-finite problem is frozen), which is what ``vmap`` of a
+    ``while_loop`` does, written out with a scalar loop predicate: ``checkify`` refuses a
+    batched predicate, and with it every checked program that solves inverse kinematics
+    along samples. Its batching rule merges a new batch axis into the stack, so a
+    ``vmap`` of any depth stays one loop with a scalar predicate. The residual's value
+    checks are not traced inside the loop: the caller checks the root it returns.
+    """
+    res = jax.vmap(residual, in_axes=(0, axes))
+    jac = jax.vmap(jax.jacfwd(residual, argnums=0), in_axes=(0, axes))
+
+    @jax.custom_batching.custom_vmap
+    def solve(xs, params):
+        def norms(x):
+            return jnp.max(jnp.abs(res(x, params)), axis=-1)
+
+        def cond(state):
+            step, _, norm = state
+            return (step < max_steps) & jnp.any(norm > tol)
+
+        def body(state):
+            step, x, norm = state
+            active = norm > tol  # False for a converged or a non-finite problem
+            dx = jnp.linalg.solve(jac(x, params), res(x, params)[..., None])[..., 0]
+            x_new = jnp.where(active[:, None], x - dx, x)
+            return step + 1, x_new, jnp.where(active, norms(x_new), norm)
+
+        _, x, _ = jax.lax.while_loop(cond, body, (jnp.asarray(0), xs, norms(xs)))
+        return x
+
+    @solve.def_vmap
+    def _batched(axis_size, in_batched, xs, params):
+        xs_batched, params_batched = in_batched
+        n = xs.shape[-2]
+        size = axis_size * n
+
+        def merge(leaf, axis, batched):
+            if batched and axis is None:  # (A, ...) -> each repeated for the n problems
+                return jnp.repeat(leaf, n, axis=0), 0
+            if batched:  # (A, n, ...) -> (A n, ...)
+                return leaf.reshape((size, *leaf.shape[2:])), 0
+            if axis is None:
+                return leaf, None
+            return jnp.broadcast_to(leaf, (axis_size, *leaf.shape)).reshape(
+                (size, *leaf.shape[1:])
+            ), 0
+
+        leaves, tree = jax.tree_util.tree_flatten(params)
+        pairs = [
+            merge(leaf, axis, batched)
+            for leaf, axis, batched in zip(
+                leaves,
+                tree.flatten_up_to(axes),
+                tree.flatten_up_to(params_batched),
+                strict=True,
+            )
+        ]
+        flat = tree.unflatten([leaf for leaf, _ in pairs])
+        new_axes = tree.unflatten([axis for _, axis in pairs])
+        xs = xs if xs_batched else jnp.broadcast_to(xs, (axis_size, *xs.shape))
+        roots = _newton_stack(residual, tol, max_steps, new_axes)(
+            xs.reshape((size, xs.shape[-1])), flat
+        )
+        return roots.reshape((axis_size, n, xs.shape[-1])), True
+
+    def checks_off(xs, params):
+        # The residual's own value checks (a robot's guards) are traced off: they would
+        # be hidden from checkify inside the custom_vmap, and callers check the root.
+        with runtime_checks(False):
+            return solve(xs, params)
+
+    return checks_off
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 3, 4))

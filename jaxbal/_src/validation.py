@@ -181,14 +181,16 @@ def checked_jit(fn):
     program has no callback, returns the error with the values, and the call raises a
     ``ValueError`` with the check's message and the offending values. With the runtime
     checks off (:func:`set_runtime_checks`) it is ``eqx.filter_jit(fn)``; called under
-    a trace (traced arguments), it is ``fn`` itself.
+    a trace (inside ``jit``/``vmap``/``grad``, even with concrete arguments), it is
+    ``fn`` itself, checked by the enclosing program.
 
-    ``checkify`` refuses a ``vmap`` of a ``lax.while_loop`` (e.g. Newton solves of
-    inverse kinematics along a batch of samples). For arguments of such a structure the
-    call falls back, once per structure, to the program with the checks as callbacks
-    (``eqx.filter_jit`` with :func:`equinox.error_if`): the same checks, a failed one
-    raised as a ``ValueError`` with its message (the offending values are not known to
-    the callback), compiled once per process instead of kept in the persistent cache.
+    ``checkify`` refuses a ``vmap`` of a plain ``lax.while_loop`` (jaxbal's own Newton
+    solves are written so that it accepts them, :mod:`jaxbal._src.implicit`). For
+    arguments of such a structure the call falls back, once per structure, to the
+    program with the checks as callbacks (``eqx.filter_jit`` with
+    :func:`equinox.error_if`): the same checks, a failed one raised as a ``ValueError``
+    with its message (the offending values are not known to the callback), compiled
+    once per process instead of kept in the persistent cache.
 
     Example::
 
@@ -220,7 +222,9 @@ def checked_jit(fn):
 
     @functools.wraps(fn)
     def call(*args):
-        if is_traced(args):
+        if is_traced(args) or _under_trace():
+            # inside another trace (even with concrete arguments: jit stages every
+            # operation) the checks are the enclosing program's
             return fn(*args)
         if not runtime_checks_enabled():
             return compiled("unchecked")(*args)
@@ -250,11 +254,21 @@ def checked_jit(fn):
 
     call.compiled = compiled  # the programs, for inspection (tests)
     call.refused = refused
+    call.programs = programs  # mode -> compiled program, those built so far (tests)
     return call
 
 
 #: the start of the error ``checkify`` raises for a ``vmap`` of a ``while_loop``
 _BATCHED_WHILE = "Checkify does not support batched while-loops"
+
+
+def _under_trace() -> bool:
+    """True inside a ``jit``/``vmap``/``grad`` trace, whatever the arguments."""
+    try:
+        from jax._src.core import trace_state_clean
+    except ImportError:  # pragma: no cover - a JAX without it: probe with an operation
+        return isinstance(jnp.zeros(()) + 0.0, jax.core.Tracer)
+    return not trace_state_clean()
 
 
 def _equinox_message(failure: RuntimeError) -> str | None:
