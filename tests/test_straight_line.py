@@ -171,3 +171,23 @@ def test_runtime_checks_survive_the_replay():
         jax.block_until_ready(wrench(jnp.full(robot.dof, jnp.nan)))
     with pytest.raises(ValueError, match="qd must have shape"):
         jax.jit(lambda q: jaxbal.shaking_wrench(robot, q, q[:1], q))(jnp.zeros(robot.dof))
+
+
+def test_replay_setting_is_part_of_the_trace_key():
+    """A nested compiled function traced with the replay off (e.g. by the co-design,
+    ``replayed(False)``) is not reused with the replay on: the switch is a _TraceFlag,
+    in JAX's trace keys (it was a plain Python list, read at trace time)."""
+    robot = jaxbal.robots.planar_2r()
+    q, qd, qdd = (a[0] for a in states(robot, 1))
+    inner = jax.jit(lambda a, b, c: jaxbal.shaking_wrench(robot, a, b, c))
+
+    def size(closed):  # equations of the nested program
+        (eqn,) = [e for e in closed.jaxpr.eqns if "jaxpr" in e.params]
+        return len(eqn.params["jaxpr"].jaxpr.eqns)
+
+    with momentum.replayed(False):
+        plain = size(jax.make_jaxpr(inner)(q, qd, qdd))
+    replay = size(jax.make_jaxpr(inner)(q, qd, qdd))
+    with momentum.replayed(False):
+        again = size(jax.make_jaxpr(inner)(q, qd, qdd))
+    assert plain == again and replay != plain

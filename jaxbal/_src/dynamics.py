@@ -103,7 +103,7 @@ def _inverse_dynamics(robot: Robot, q, qd, qdd, gravity, formulation=None) -> Co
     "before")."""
     q, qd, qdd = checked_state(robot, q, qd, qdd)
     if formulation is None:
-        formulation = _straight_kane_forces if _REPLAY[0] else _kane_forces
+        formulation = _straight_kane_forces if _REPLAY.value else _kane_forces
     tau = formulation(robot, q, qd, qdd, gravity)
     tau = checked_parameters(robot, checked_bodies(robot, tau))
     return checked_finite("generalised forces", robot, tau)

@@ -39,11 +39,11 @@ from jaxbal._src.straight_line import straight_line
 from jaxbal._src.types import Array, Coordinates, Points, Rotations, Scalar, Vec3
 from jaxbal._src.validation import (
     ROUNDING,
+    _TraceFlag,
     check_shape,
     guard,
     is_traced,
     runtime_checks,
-    switched,
 )
 
 
@@ -325,8 +325,9 @@ def _wrench_of_one_state(robot: Robot, q, qd, qdd, gravity):
 
 
 #: whether traced evaluations of the wrench are replayed as straight-line code
-#: (:func:`replayed`).
-_REPLAY = [True]
+#: (:func:`replayed`); in JAX's trace keys, so a nested compiled function traced one
+#: way is not reused the other way.
+_REPLAY = _TraceFlag(True)
 
 
 @contextlib.contextmanager
@@ -342,7 +343,7 @@ def replayed(enabled: bool):
     co-design's value and gradient, starts sooner without it (measured on the 2-core
     CPU: the first DUAL-V co-design 1.47 s → 1.10 s, each later evaluation
     ~1.5–2× slower)."""
-    with switched(_REPLAY, enabled):
+    with _REPLAY(enabled):
         yield
 
 
@@ -351,7 +352,7 @@ def _shaking_wrench(robot: Robot, q, qd, qdd, gravity, replay: bool | None = Non
     the straight-line replay (the benchmark's "before"); ``None``: as set by
     :func:`replayed`."""
     q, qd, qdd = checked_state(robot, q, qd, qdd)
-    physics = _straight_physics if (_REPLAY[0] if replay is None else replay) else _physics
+    physics = _straight_physics if (_REPLAY.value if replay is None else replay) else _physics
     force, moment = physics(robot, q, qd, qdd, gravity)
     # Both outputs guarded: a check on the force alone was dropped from compiled code
     # that uses only the moment (peak_moment of a NaN-inertia robot was finite).
