@@ -4,9 +4,11 @@ evaluated (shape errors at trace time, value errors eagerly and at run time)."""
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 import pytest
 
 import jaxbal
+from jaxbal.profiles import Quintic
 from jaxbal.robots.dual_v_balancing import with_counter_mass_moments
 
 
@@ -149,3 +151,37 @@ def test_trapezoid_with_a_tiny_jerk_phase_is_the_bang_bang_limit():
     assert abs(float(profile(u2)) - peak * u2**2 / 2.0) < 1e-15
     compiled = eqx.filter_jit(lambda p, x: jax.vmap(p)(x))(profile, u)
     assert jnp.allclose(compiled, s, rtol=0, atol=1e-15)
+
+
+def test_non_finite_state_is_named_when_the_check_guards_the_outputs():
+    """The state's finiteness guards the wrench / torques computed from it (it is no
+    longer threaded through the check, which split the compiled loop): a NaN row in a
+    vmapped batch still raises the state's error first, under jit, vmap and
+    checked_jit (with the offending values), and a concrete NaN state inside a jit is a
+    ValueError at once."""
+    robot = jaxbal.robots.dual_v()
+    motion = jaxbal.design.motion_samples(
+        robot,
+        jaxbal.planning.EndEffectorLine(
+            robot,
+            jaxbal.StraightLine(
+                jnp.array([0.0, -0.05, 0.0]), jnp.array([0.05, 0.05, 0.0]), Quintic(), 0.2
+            ),
+        ),
+        jnp.linspace(0.0, 0.2, 5),
+    )
+    q, qd, qdd = motion
+    bad_qd = qd.at[3, 2].set(jnp.nan)
+    for evaluate in (jaxbal.shaking_wrench, jaxbal.actuator_torques):
+        batch = jax.jit(jax.vmap(lambda a, b, c, f=evaluate: f(robot, a, b, c)))
+        assert all(
+            np.all(np.isfinite(np.asarray(x))) for x in jax.tree_util.tree_leaves(batch(q, qd, qdd))
+        )
+        with pytest.raises(Exception, match="non-finite state"):
+            jax.block_until_ready(batch(q, bad_qd, qdd))
+        checked = jaxbal.checked_jit(batch)
+        with pytest.raises(ValueError, match=r"non-finite state \(q, qd, qdd\): \["):
+            checked(q, bad_qd, qdd)
+    with pytest.raises(ValueError, match="non-finite state"):
+        state = (q[0], bad_qd[3], qdd[0])  # concrete arrays, closed over by the jit
+        jax.jit(lambda r: jaxbal.shaking_wrench(r, *state))(robot)

@@ -42,9 +42,9 @@ from jaxbal._src.momentum import (
     checked_bodies,
     checked_finite,
     checked_parameters,
-    checked_state,
 )
 from jaxbal._src.robot import Robot
+from jaxbal._src.state_checks import state_check
 from jaxbal._src.straight_line import straight_line
 from jaxbal._src.types import Array, Coordinates, Float, Scalar, Vec3
 from jaxbal._src.validation import check_shape
@@ -101,10 +101,10 @@ def _inverse_dynamics(robot: Robot, q, qd, qdd, gravity, formulation=None) -> Co
     """:func:`inverse_dynamics` with its checks, the forces from ``formulation(robot, q, q̇,
     q̈, gravity)`` (default Kane's form; :func:`lagrange_forces` is the benchmark's
     "before")."""
-    q, qd, qdd = checked_state(robot, q, qd, qdd)
+    q, qd, qdd, check = state_check(robot, q, qd, qdd)
     if formulation is None:
         formulation = _straight_kane_forces if _REPLAY.value else _kane_forces
-    tau = formulation(robot, q, qd, qdd, gravity)
+    tau = check(formulation(robot, q, qd, qdd, gravity))
     tau = checked_parameters(robot, checked_bodies(robot, tau))
     return checked_finite("generalised forces", robot, tau)
 

@@ -35,6 +35,7 @@ from jaxbal._src.linalg import (
 )
 from jaxbal._src.planar import PlanarRobot, planar_inertial_wrench
 from jaxbal._src.robot import Robot
+from jaxbal._src.state_checks import state_check
 from jaxbal._src.straight_line import straight_line
 from jaxbal._src.types import Array, Coordinates, Points, Rotations, Scalar, Vec3
 from jaxbal._src.validation import (
@@ -45,16 +46,6 @@ from jaxbal._src.validation import (
     is_traced,
     runtime_checks,
 )
-
-
-def checked_state(robot: Robot, q, qd, qdd):
-    """``(q, q̇, q̈)`` as float arrays, shape-checked ``(dof,)`` and checked finite."""
-    q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
-    for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
-        check_shape(name, value, (robot.dof,))
-    state = jnp.stack([q, qd, qdd])
-    state = guard(state, ~jnp.isfinite(state), "non-finite state (q, qd, qdd)", state)
-    return state[0], state[1], state[2]
 
 
 def _body_faults(robot: Robot):
@@ -351,9 +342,9 @@ def _shaking_wrench(robot: Robot, q, qd, qdd, gravity, replay: bool | None = Non
     """The checked wrench; ``replay=False`` evaluates the physics as written, without
     the straight-line replay (the benchmark's "before"); ``None``: as set by
     :func:`replayed`."""
-    q, qd, qdd = checked_state(robot, q, qd, qdd)
+    q, qd, qdd, check = state_check(robot, q, qd, qdd)
     physics = _straight_physics if (_REPLAY.value if replay is None else replay) else _physics
-    force, moment = physics(robot, q, qd, qdd, gravity)
+    force, moment = check(physics(robot, q, qd, qdd, gravity))
     # Both outputs guarded: a check on the force alone was dropped from compiled code
     # that uses only the moment (peak_moment of a NaN-inertia robot was finite).
     force, moment = checked_parameters(robot, checked_bodies(robot, (force, moment)))

@@ -61,10 +61,10 @@ from jaxbal._src.momentum import (
     checked_bodies,
     checked_finite,
     checked_parameters,
-    checked_state,
 )
 from jaxbal._src.planar import PlanarRobot
 from jaxbal._src.robot import Bodies, Robot, rot_z_from
+from jaxbal._src.state_checks import checked_state
 from jaxbal._src.types import Array, Coordinates
 from jaxbal._src.validation import runtime_checks, runtime_checks_enabled
 
