@@ -191,3 +191,20 @@ def test_replay_setting_is_part_of_the_trace_key():
     with momentum.replayed(False):
         again = size(jax.make_jaxpr(inner)(q, qd, qdd))
     assert plain == again and replay != plain
+
+
+def test_code_too_large_to_pay_off_runs_as_written(monkeypatch):
+    """Generated code above MAX_GENERATED operations is not used (found with an MJCF
+    3-RRR: 9,148 operations compiled in 8 s for a 1.3x faster wrench): the function is
+    evaluated as written, with the same values."""
+    from jaxbal._src import straight_line as module
+
+    def f(x):
+        return jnp.sum(jnp.sin(x) * jnp.cos(x[::-1]) + x**2)
+
+    x = jnp.linspace(0.1, 1.0, 12)
+    replayed_code = jax.make_jaxpr(straight_line(f))(x)
+    monkeypatch.setattr(module, "MAX_GENERATED", 5)
+    plain = jax.make_jaxpr(straight_line(f))(x)  # a new wrapper: its own cache
+    assert str(plain) == str(jax.make_jaxpr(f)(x)) != str(replayed_code)
+    np.testing.assert_allclose(float(jax.jit(straight_line(f))(x)), float(f(x)), rtol=1e-15)

@@ -98,6 +98,14 @@ def evaluate(jaxpr, consts, args) -> list[np.ndarray]:
 #: scalars, 2.3 s; the 22-body split model of its torque distribution, 39,563 scalars,
 #: 19.7 s for a single state against 3.6 s without the replay).
 MAX_SCALARS = 30_000
+#: Above this many scalar operations in the *generated* code (after constant folding
+#: and dropped zeros) ``fn`` runs as is: the replay's compile time outgrows its gain.
+#: Measured on the 2-core CPU, vmapped shaking wrench with the robot traced: the
+#: built-in robots generate 294–1,997 operations (compile 0.2–0.9 s, 4–27× faster
+#: than without the replay; their Kane forces up to 3,006), an MJCF RUSR loop 4,280
+#: (compile 3.2 s against 0.9 s, only 1.6× faster) and an MJCF 3-RRR 9,148 (8.1 s
+#: against 1.3 s, 1.3× faster; its first ``wrench_along`` took 17 s).
+MAX_GENERATED = 4_000
 #: Generated programs kept per wrapped function (least recently used dropped).
 CACHE_SIZE = 64
 
@@ -124,7 +132,8 @@ def _leaf_key(leaf):
 
 def _generate(fn, leaves, treedef, traced):
     """``(jitted straight-line program, output treedef)`` of ``fn`` for these argument
-    leaves, or ``None`` when ``fn`` is larger than :data:`MAX_SCALARS`."""
+    leaves, or ``None`` when ``fn`` is larger than :data:`MAX_SCALARS` or the code
+    generated larger than :data:`MAX_GENERATED`."""
     specs = [
         jax.ShapeDtypeStruct(leaf.aval.shape, leaf.aval.dtype)
         for leaf, t in zip(leaves, traced, strict=True)
@@ -148,6 +157,8 @@ def _generate(fn, leaves, treedef, traced):
     # The generated program is traced once and kept as one jaxpr: later traces (under
     # other jit/vmap/grad contexts) reuse it and JAX's caches of its transformations.
     generated = jax.make_jaxpr(program)(*specs)
+    if len(generated.jaxpr.eqns) > MAX_GENERATED:
+        return None
     return jax.jit(core.jaxpr_as_fun(generated)), out_tree
 
 
@@ -156,7 +167,8 @@ def straight_line(fn, context=lambda: ()):
 
     The arguments' traced leaves become the inputs of the generated code; concrete
     leaves (e.g. a robot closed over by ``vmap``) are folded into it as constants.
-    Functions larger than :data:`MAX_SCALARS` are evaluated as they are. The generated
+    Functions larger than :data:`MAX_SCALARS`, or whose generated code is larger than
+    :data:`MAX_GENERATED`, are evaluated as they are. The generated
     code is cached on the argument structure, the traced leaves' shapes and dtypes, the
     concrete leaves' values and ``context()`` (global switches read while tracing).
     """
