@@ -64,7 +64,7 @@ from jaxbal._src.momentum import (
 )
 from jaxbal._src.planar import PlanarRobot
 from jaxbal._src.robot import Bodies, Robot, rot_z_from
-from jaxbal._src.state_checks import checked_state
+from jaxbal._src.state_checks import state_check
 from jaxbal._src.types import Array, Coordinates
 from jaxbal._src.validation import runtime_checks, runtime_checks_enabled
 
@@ -218,8 +218,8 @@ def wrench_regressor(robot: Robot, q: Coordinates, qd: Coordinates, qdd: Coordin
             a NaN length set with ``eqx.tree_at``) or an overflow; under ``jit`` the
             same value checks at run time (:func:`jaxbal.set_runtime_checks`).
     """
-    q, qd, qdd = checked_state(robot, q, qd, qdd)
-    force, moment = _columns(frame_kinematics(robot, q, qd, qdd))
+    q, qd, qdd, check = state_check(robot, q, qd, qdd)
+    force, moment = check(_columns(frame_kinematics(robot, q, qd, qdd)))
     columns = checked_parameters(robot, (force.reshape(3, -1), moment.reshape(3, -1)))
     return checked_finite("wrench regressor", robot, columns)
 
