@@ -35,6 +35,7 @@ from jaxbal._src.metrics import (
     rms_torque,
 )
 from jaxbal._src.motion_factories import ComTrapezoid, TrapezoidLine
+from jaxbal._src.multistart import MultiStart, multistart_joint_codesign
 from jaxbal._src.pareto import (
     DOMINANCE_RTOL,
     ParetoFront,
@@ -59,6 +60,7 @@ __all__ = [
     "TrapezoidLine",
     "DesignSolution",
     "Motion",
+    "MultiStart",
     "added_inertia",
     "added_mass",
     "as_motion",
@@ -68,6 +70,7 @@ __all__ = [
     "dominance",
     "joint_codesign",
     "motion_samples",
+    "multistart_joint_codesign",
     "nondominated",
     "pareto_front",
     "plot_front",
