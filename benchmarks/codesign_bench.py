@@ -13,7 +13,8 @@ compiled code). Accuracy: the relative difference of the two optimal objectives 
 designs (a flat optimum, as on the 20-variable arm, shows in the design difference).
 
 The times with compilation are also measured each in a fresh process with an empty
-compilation cache (``python codesign_bench.py PROBLEM jaxbal|scipy``), so that neither
+compilation cache (``python codesign_bench.py PROBLEM jaxbal|scipy``; the median of
+three such processes), so that neither
 method profits from what the other compiled or traced first in the same process.
 """
 
@@ -191,16 +192,25 @@ def bench_problem(robot, motion, free) -> dict:
     }
 
 
+#: fresh processes per problem and method; their median is reported (one such run
+#: varied by ±15 % from one to the next on the 2-core CPU)
+FRESH_RUNS = 3
+
+
 def first_run(name: str, method: str) -> float:
-    """Seconds of the first co-design of problem ``name`` by ``method`` in a fresh
-    process with an empty compilation cache (imports and the motion excluded)."""
+    """Median seconds of the first co-design of problem ``name`` by ``method``, each in
+    a fresh process with an empty compilation cache (imports and the motion excluded),
+    over :data:`FRESH_RUNS` processes."""
     here = Path(__file__).resolve().parent
-    with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, JAXBAL_CACHE_DIR=cache, PYTHONPATH=str(here))
-        env.pop("XLA_FLAGS", None)
-        command = [sys.executable, str(here / "codesign_bench.py"), name, method]
-        out = subprocess.run(command, env=env, capture_output=True, text=True, check=True)
-    return float(json.loads(out.stdout.strip().splitlines()[-1])["seconds"])
+    seconds = []
+    for _ in range(FRESH_RUNS):
+        with tempfile.TemporaryDirectory() as cache:
+            env = dict(os.environ, JAXBAL_CACHE_DIR=cache, PYTHONPATH=str(here))
+            env.pop("XLA_FLAGS", None)
+            command = [sys.executable, str(here / "codesign_bench.py"), name, method]
+            out = subprocess.run(command, env=env, capture_output=True, text=True, check=True)
+        seconds.append(float(json.loads(out.stdout.strip().splitlines()[-1])["seconds"]))
+    return float(np.median(seconds))
 
 
 def bench_all() -> dict:
