@@ -9,6 +9,7 @@ starts lie inside their bounds and follow the seed.
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from test_joint_codesign import LOWER, THETA, UPPER
 
 import jaxbal
 from jaxbal._src.design_loss import _bounds
@@ -20,9 +21,6 @@ from jaxbal.design import (
     payload_metrics,
 )
 
-THETA = {"u2": 0.25, "ratio": 0.5}
-LOWER = {"u2": 0.05, "ratio": 0.05}
-UPPER = {"u2": 0.45, "ratio": 1.0}
 PAYLOADS = jnp.array([0.0, 5.0])
 OPTIONS = {
     "trajectory_lower": LOWER,
@@ -36,11 +34,9 @@ OPTIONS = {
 
 @pytest.fixture(scope="module")
 def problem():
-    arm = jaxbal.robots.planar_2r()
-    move = TrapezoidLine(
-        jnp.array([0.225, 0.25]), jnp.array([0.225, 0.70]), jaxbal.sample_times(0.5, 16)
-    )
-    return arm, move
+    """The 2R and move of tests/test_joint_codesign.py (a fixture cannot be imported)."""
+    start, end = jnp.array([0.225, 0.25]), jnp.array([0.225, 0.70])
+    return jaxbal.robots.planar_2r(), TrapezoidLine(start, end, jaxbal.sample_times(0.5, 16))
 
 
 @pytest.fixture(scope="module")
