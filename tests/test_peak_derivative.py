@@ -1,6 +1,7 @@
-"""Derivatives of the peak metrics (peak_force, peak_moment, peak_torque) taken at the
-peak sample: equal to reverse mode through every sample (the former formulation), to
-central finite differences (``check_grads``, first and second order, forward and
+"""Derivatives of the peak metrics (peak_force, peak_moment, peak_torque,
+peak_torque_rate) taken at the peak sample: equal to reverse mode through every sample
+(the former formulation), to central finite differences (``check_grads``, first and
+second order, forward and
 reverse), finite at ties, and ``vmap`` equal to a loop."""
 
 import jax
@@ -11,9 +12,16 @@ from jax.test_util import check_grads
 
 import jaxbal
 from jaxbal import robots
-from jaxbal._src.metrics import _torques, _wrench
+from jaxbal._src.metrics import _torques, _wrench, torque_rate
 from jaxbal._src.planning import peak_norm
-from jaxbal.design import as_motion, motion_samples, peak_force, peak_moment, peak_torque
+from jaxbal.design import (
+    as_motion,
+    motion_samples,
+    peak_force,
+    peak_moment,
+    peak_torque,
+    peak_torque_rate,
+)
 from jaxbal.planning import EndEffectorLine
 from jaxbal.profiles import Quintic
 
@@ -138,3 +146,43 @@ def test_vmap_over_designs_equals_a_loop():
     loop = [one(p) for p in payloads]
     np.testing.assert_allclose(vg[0], [float(v) for v, _ in loop], rtol=1e-12)
     np.testing.assert_allclose(vg[1], [float(g) for _, g in loop], rtol=1e-10)
+
+
+def _jerk_case(samples=24):
+    robot, start, end = CASES["planar_2r"]
+    line = jaxbal.StraightLine(jnp.asarray(start), jnp.asarray(end), Quintic(), 0.2)
+    times = jaxbal.sample_times(0.2, samples)
+    return robot, motion_samples(robot, [EndEffectorLine(robot, line)], times, order=3)
+
+
+def _rates_every_sample(robot, motion):
+    """The former peak torque rate: reverse mode through the maximum of every sample."""
+    return jnp.max(jnp.abs(jax.vmap(lambda *s: torque_rate(robot, *s))(*motion)))
+
+
+def test_torque_rate_gradient_equals_reverse_mode_through_every_sample():
+    """The peak torque rate (max over samples and actuators of |dτ_i/dt|) differentiated
+    at its peak sample and actuator: the value and the gradient in the design (payload,
+    counter-masses) and in a time scaling of the motion equal reverse mode through every
+    sample (1e-10 of the largest entry), and central differences."""
+    robot, motion = _jerk_case()
+    robot = robot.with_design({"counter_distance": jnp.array([0.3, 0.2])})
+
+    def objective(metric):
+        def f(payload, counter_mass, k):
+            arm = robot.with_design({"payload": payload, "counter_mass": counter_mass})
+            q, qd, qdd, qddd = motion
+            return metric(arm, type(motion)(q, k * qd, k**2 * qdd, k**3 * qddd))
+
+        return jax.jit(f)
+
+    args = (jnp.asarray(1.5), jnp.array([2.0, 1.0]), jnp.asarray(1.2))
+    new, old = objective(peak_torque_rate), objective(_rates_every_sample)
+    np.testing.assert_allclose(float(new(*args)), float(old(*args)), rtol=1e-12)
+    g_new = jax.grad(new, argnums=(0, 1, 2))(*args)
+    g_old = jax.grad(old, argnums=(0, 1, 2))(*args)
+    scale = max(float(jnp.max(jnp.abs(g))) for g in g_old)
+    for a, b in zip(g_new, g_old, strict=True):
+        assert np.all(np.isfinite(np.asarray(a)))
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-10 * scale)
+    check_grads(new, args, order=1, modes=("fwd", "rev"), eps=1e-5, rtol=1e-6)

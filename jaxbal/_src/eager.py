@@ -20,7 +20,7 @@ import jax
 import numpy as np
 
 from jaxbal._src.robot import Robot
-from jaxbal._src.validation import runtime_checks
+from jaxbal._src.validation import _under_trace, runtime_checks
 
 
 @eqx.filter_jit
@@ -41,8 +41,14 @@ def run_compiled(fn: Callable, faulty: Callable, robot: Robot, *arrays):
 
     Returns:
         ``fn(robot, *arrays)``; where a check fails, the result of the operation-by-
-        operation call (which raises the named ``ValueError``).
+        operation call (which raises the named ``ValueError``). Inside another trace
+        (concrete values closed over by a user's ``jax.jit``) ``fn`` itself, staged
+        into the enclosing program: the compiled program's results would be tracers
+        there, which the checks below cannot read (it raised
+        ``TracerArrayConversionError``).
     """
+    if _under_trace():
+        return fn(robot, *arrays)
     values = [None if a is None else np.asarray(a, dtype=float) for a in arrays]
     if all(v is None or np.all(np.isfinite(v)) for v in values):
         out, rejected = _program(fn, faulty, robot, values)

@@ -26,9 +26,10 @@ The shaking wrench is the inertial one of :func:`jaxbal.shaking_wrench` (no grav
 the moment is the full 3-vector about the base origin (along z for planar robots). The
 torque norm mixes N·m and N for robots with both revolute and prismatic actuators.
 Every norm is zero-safe (a zero vector gives a zero, not NaN, gradient). The peak
-metrics are differentiated at their peak sample (``_peak``): the same derivative as
-reverse mode through every sample wherever the peak is unique, at about the cost of one
-evaluation (``grad``/value ≈ 1 instead of ≈ 3).
+metrics (the torque rate's included) are differentiated at their peak sample
+(:mod:`jaxbal._src.peak_sample`): the same derivative as reverse mode through every
+sample wherever the peak is unique, at about the cost of one evaluation (``grad``/value
+≈ 1 instead of ≈ 3).
 
 References:
     Briot, Arakelian & Le Baron (2012), eq (1) and Tables 1-2 (peak shaking force);
@@ -38,29 +39,26 @@ References:
 from __future__ import annotations
 
 from collections.abc import Callable
-from functools import partial
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from jax.custom_derivatives import SymbolicZero
 
 from jaxbal._src.actuation import actuator_torques
-from jaxbal._src.along_motion import batched, samples
+from jaxbal._src.along_motion import batched
 from jaxbal._src.linalg import matvec
 from jaxbal._src.momentum import (
     body_com_poses,
     checked_bodies,
     checked_finite,
     checked_parameters,
-    replayed,
     shaking_wrench,
 )
 from jaxbal._src.motion_samples import JerkMotion, Motion, as_motion, motion_samples
-from jaxbal._src.planning import peak_norm
+from jaxbal._src.peak_sample import peak, peak_abs, unit_scale
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Float, Scalar
-from jaxbal._src.validation import guard, is_traced, runtime_checks
+from jaxbal._src.validation import guard, is_traced
 
 __all__ = [
     "ADDED_MASS_VARIABLES",
@@ -105,17 +103,10 @@ def _torques(robot: Robot, motion: Motion):
     return batched(actuator_torques, robot, motion, "actuator torques")
 
 
-def _unit_scale(vectors):
-    """``max |v|`` when the squares of ``vectors`` would overflow (> 1e150), else 1 (exact:
-    the usual values are unchanged); no gradient."""
-    big = jax.lax.stop_gradient(jnp.max(jnp.abs(vectors), initial=0.0))
-    return jnp.where(big > 1e150, big, 1.0)
-
-
 def _rms(vectors: Float[Array, "t k"]) -> Scalar:
     """``sqrt(mean_t ‖v(t)‖²)``, with a zero (not NaN) gradient at ``v ≡ 0``; scaled so
     that a finite wrench above 1e154 N does not overflow to inf."""
-    scale = _unit_scale(vectors)
+    scale = unit_scale(vectors)
     mean_square = jnp.mean(jnp.sum((vectors / scale) ** 2, axis=-1))
     positive = mean_square > 0.0
     return scale * jnp.where(positive, jnp.sqrt(jnp.where(positive, mean_square, 1.0)), 0.0)
@@ -132,67 +123,6 @@ def _rms_of(vectors: Float[Array, "t k"]) -> Scalar:
     return (_rms if is_traced(vectors) else _rms_compiled)(vectors)
 
 
-def _peak(evaluate, pick, robot: Robot, motion: Motion, what: str) -> Scalar:
-    """``max_t ‖pick(evaluate(robot, q_t, q̇_t, q̈_t))‖``, differentiated at its peak sample.
-
-    The value is :func:`peak_norm` of every sample. Under ``jit`` it is a
-    ``custom_jvp`` (:func:`_peak_traced`): a plain evaluation (a sweep, a value) runs
-    only that, and a derivative (``jvp``, ``grad``, of any order) is the one of
-    ``‖v(t*)‖`` at the peak sample ``t*``, from one re-evaluation there. That is the
-    derivative of the maximum wherever the peak sample is unique (the maximum equals
-    ``‖v(t*)‖`` in a neighbourhood), so ``grad`` costs about one value instead of the
-    ``~3×`` of reverse mode through all samples (nothing of the samples is stored for
-    the reverse pass). At an exact tie between samples it is the derivative at the
-    first of them (a subgradient; ``jnp.max`` would average them).
-    """
-    motion = as_motion(motion)
-    if not is_traced(robot, motion):
-        return peak_norm(pick(batched(evaluate, robot, motion, what)))
-    return _peak_traced(evaluate, pick, robot, motion)
-
-
-def _all_samples(evaluate, pick, robot, motion):
-    return pick(samples(evaluate, robot, motion))
-
-
-@partial(jax.custom_jvp, nondiff_argnums=(0, 1))
-def _peak_traced(evaluate, pick, robot, motion):
-    return peak_norm(_all_samples(evaluate, pick, robot, motion))
-
-
-def _peak_traced_jvp(evaluate, pick, primals, tangents):
-    robot, motion = primals
-    vectors = _all_samples(evaluate, pick, robot, motion)
-    index = jnp.argmax(jnp.sum(jnp.square(vectors / _unit_scale(vectors)), axis=-1))
-    # differentiate only the inputs with a tangent: the others stay constants of the
-    # re-evaluation, as they are of the evaluation of every sample above; the values
-    # were checked by that evaluation (same robot, same states): the re-evaluation at
-    # t* runs without its own runtime checks. It is one sample, not a batch, so it is
-    # evaluated as written, without the straight-line replay (momentum.replayed): the
-    # replay's gain is XLA fusing its scalar code across the batch, while for a single
-    # sample its ~1,000 scalar operations compile to more kernels than the array code
-    # (measured on the 2-core CPU: DUAL-V peak-force gradient ~75 → ~50 µs against a
-    # ~35 µs value, first gradient 1.65 → 1.43 s; the 2R and SCARA within noise)
-    leaves, treedef = jax.tree_util.tree_flatten(primals)
-    directions = jax.tree_util.tree_leaves(tangents, is_leaf=lambda t: isinstance(t, SymbolicZero))
-    active = [not isinstance(t, SymbolicZero) for t in directions]
-
-    def local(*moving):
-        it = iter(moving)
-        full = [next(it) if a else leaf for leaf, a in zip(leaves, active, strict=True)]
-        robot, motion = jax.tree_util.tree_unflatten(treedef, full)
-        return peak_norm(pick(evaluate(robot, *(part[index] for part in motion)))[None])
-
-    moving = [leaf for leaf, a in zip(leaves, active, strict=True) if a]
-    directions = [t for t, a in zip(directions, active, strict=True) if a]
-    with runtime_checks(False), replayed(False):
-        _, derivative = jax.jvp(local, moving, directions)
-    return peak_norm(vectors), derivative
-
-
-_peak_traced.defjvp(_peak_traced_jvp, symbolic_zeros=True)
-
-
 def _force(wrench):
     return wrench[0]
 
@@ -206,8 +136,9 @@ def _same(vectors):
 
 
 def peak_force(robot: Robot, motion: Motion) -> Scalar:
-    """Peak shaking force ``max_t ‖f_sh(t)‖`` [N] (derivatives: see :func:`_peak`)."""
-    return _peak(shaking_wrench, _force, robot, motion, "shaking wrench")
+    """Peak shaking force ``max_t ‖f_sh(t)‖`` [N] (derivatives: see
+    :mod:`~jaxbal._src.peak_sample`)."""
+    return peak(shaking_wrench, _force, robot, motion, "shaking wrench")
 
 
 def rms_force(robot: Robot, motion: Motion) -> Scalar:
@@ -217,8 +148,8 @@ def rms_force(robot: Robot, motion: Motion) -> Scalar:
 
 def peak_moment(robot: Robot, motion: Motion) -> Scalar:
     """Peak shaking moment about the base origin ``max_t ‖m_sh(t)‖`` [N·m] (derivatives:
-    see :func:`_peak`)."""
-    return _peak(shaking_wrench, _moment, robot, motion, "shaking wrench")
+    see :mod:`~jaxbal._src.peak_sample`)."""
+    return peak(shaking_wrench, _moment, robot, motion, "shaking wrench")
 
 
 def rms_moment(robot: Robot, motion: Motion) -> Scalar:
@@ -228,8 +159,8 @@ def rms_moment(robot: Robot, motion: Motion) -> Scalar:
 
 def peak_torque(robot: Robot, motion: Motion) -> Scalar:
     """Peak norm of the actuator torque/force vector ``max_t ‖τ(t)‖`` [N·m, N]
-    (derivatives: see :func:`_peak`)."""
-    return _peak(actuator_torques, _same, robot, motion, "actuator torques")
+    (derivatives: see :mod:`~jaxbal._src.peak_sample`)."""
+    return peak(actuator_torques, _same, robot, motion, "actuator torques")
 
 
 def rms_torque(robot: Robot, motion: Motion) -> Scalar:
@@ -264,8 +195,7 @@ def peak_torque_rate(robot: Robot, motion: JerkMotion) -> Scalar:
             "peak_torque_rate needs the jerk: give a JerkMotion (motion_samples(..., "
             f"order=3) or a motion factory with order=3), got {type(motion).__name__}"
         )
-    rates = batched(torque_rate, robot, motion, "actuator torque rates", jerk=True)
-    return jnp.max(jnp.abs(rates))
+    return peak_abs(torque_rate, robot, motion, "actuator torque rates")
 
 
 def added_mass(robot: Robot, motion: Motion | None = None) -> Scalar:
