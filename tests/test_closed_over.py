@@ -59,3 +59,12 @@ def test_an_invalid_closed_over_robot_still_raises_the_named_error():
     bad = eqx.tree_at(lambda r: r.masses, ROBOT, jnp.array([-1.0, 1.0]))
     with pytest.raises(ValueError, match="mass"):
         jax.jit(lambda scale: jaxbal.center_of_mass(bad, STATE[0]) * scale)(1.0)
+
+
+def test_a_host_side_analysis_under_jit_is_refused_by_name():
+    """``balancing_conditions`` (a NumPy SVD) inside a user's ``jit`` raised a
+    ``TracerArrayConversionError``; now a ``ValueError`` saying what to call instead."""
+    from jaxbal.balancing import balancing_conditions
+
+    with pytest.raises(ValueError, match="outside jit"):
+        jax.jit(lambda scale: balancing_conditions(ROBOT, MOTION).__class__ and scale)(1.0)

@@ -66,7 +66,7 @@ from jaxbal._src.planar import PlanarRobot
 from jaxbal._src.robot import Bodies, Robot, rot_z_from
 from jaxbal._src.state_checks import state_check
 from jaxbal._src.types import Array, Coordinates
-from jaxbal._src.validation import runtime_checks, runtime_checks_enabled
+from jaxbal._src.validation import _under_trace, runtime_checks, runtime_checks_enabled
 
 __all__ = [
     "LUMPED",
@@ -347,9 +347,16 @@ def balancing_conditions(
         robot balanced along the motion.
 
     Raises:
-        ValueError: an unknown ``part``, a ``rtol`` outside ``(0, 1)``, or (as
-            :func:`linear_wrench`) an invalid robot or motion.
+        ValueError: an unknown ``part``, a ``rtol`` outside ``(0, 1)``, (as
+            :func:`linear_wrench`) an invalid robot or motion, or a call inside
+            ``jit``/``vmap``/``grad`` (a host-side analysis; it raised a
+            ``TracerArrayConversionError``).
     """
+    if _under_trace():
+        raise ValueError(
+            "balancing_conditions is a host-side analysis (a NumPy SVD giving named "
+            "conditions): call it outside jit/vmap/grad; traced code can use linear_wrench"
+        )
     if part not in ("force", "moment", "both"):
         raise ValueError(f"part must be 'force', 'moment' or 'both', got {part!r}")
     if not 0.0 < float(rtol) < 1.0:
