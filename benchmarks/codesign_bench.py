@@ -36,6 +36,7 @@ from cases import robot_and_motion
 from scipy.optimize import minimize as scipy_minimize
 
 import jaxbal
+from jaxbal._src.lbfgsb import one_blas_thread
 from jaxbal.design import Motion, added_inertia, added_mass, base_inertia, codesign, rms_force
 
 
@@ -141,9 +142,12 @@ def run_scipy(value, start, free, tol):
     x0 = _flat(start, free)
     bounds = [(0.0, None)] * x0.size
     began = time.perf_counter()
-    result = scipy_minimize(
-        fun, x0, method="SLSQP", bounds=bounds, options={"ftol": tol, "maxiter": 2000}
-    )
+    # one BLAS thread, as jaxbal's co-design runs L-BFGS-B (jaxbal/_src/lbfgsb.py): SLSQP's
+    # matrices are as small, and OpenBLAS's spinning threads would fight XLA's
+    with one_blas_thread():
+        result = scipy_minimize(
+            fun, x0, method="SLSQP", bounds=bounds, options={"ftol": tol, "maxiter": 2000}
+        )
     return result.x, time.perf_counter() - began, evaluations[0]
 
 

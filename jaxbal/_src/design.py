@@ -69,23 +69,21 @@ from jaxbal._src.design_loss import (
     START_OFFSET,
     _bounds,
     _combine_numpy,
+    _designed,
+    _evaluate,
     _everything,
-    _floor,
     _objective_terms,
     _Problem,
     _raise_invalid_start,
-    _to_design,
     _to_design_numpy,
     _to_params,
     _unflatten,
-    _values,
     design_loss,
     loss_grad_function,
 )
-from jaxbal._src.lbfgsb import lbfgsb, projected_gradient
+from jaxbal._src.lbfgsb import lbfgsb, one_blas_thread, projected_gradient
 from jaxbal._src.metrics import (
     Metric,
-    Motion,
     as_motion,
     check_design_names,
     finite_array,
@@ -94,6 +92,7 @@ from jaxbal._src.metrics import (
 )
 from jaxbal._src.momentum import check_robot
 from jaxbal._src.optimize import minimize
+from jaxbal._src.reduced_motion import REDUCE_MIN_VARIABLES, reduce_motion, reduces
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
 from jaxbal._src.validation import runtime_checks
@@ -101,6 +100,7 @@ from jaxbal._src.validation import runtime_checks
 __all__ = [
     "CONSTRAINT_PENALTY",
     "FEASIBILITY_RTOL",
+    "REDUCE_MIN_VARIABLES",
     "START_OFFSET",
     "DesignSolution",
     "codesign",
@@ -148,22 +148,7 @@ class DesignSolution(NamedTuple):
     history: Array
 
 
-@eqx.filter_jit
-def _evaluate(robot: Robot, motion: Motion, metrics: tuple):
-    """Values and scale floors of ``metrics`` (jit-compiled, cached on the structure)."""
-    floors = jnp.stack([_floor(robot, motion, m) for m in metrics])
-    return _values(robot, motion, metrics), floors
-
-
-@eqx.filter_jit
-def _designed(robot: Robot, params, problem: _Problem):
-    """The robot at the optimiser's parameters and its design variables (compiled once
-    per structure)."""
-    optimised = robot.with_design(_to_design(params, problem))
-    return optimised, optimised.design()
-
-
-def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol):
+def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol, reduce):
     """:func:`codesign` with the default optimiser: the host-driven L-BFGS-B of
     :mod:`jaxbal._src.lbfgsb` around one compiled program (:func:`_loss_grad`), in the
     design variables themselves (``problem.mapped`` False)."""
@@ -176,6 +161,8 @@ def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol):
     where = np.asarray([everything.index(m) for m in problem.constrained], dtype=int)
     # the starting design as given: its metric values set the scales (module doc)
     check_robot(robot)  # an invalid robot is refused before the program compiles
+    if reduces(reduce, x_start.size, motion):
+        motion = reduce_motion(robot, motion, problem.free, everything) or motion
     loss_grad = loss_grad_function(robot, motion, problem, layout)
     _, _, before, floors = loss_grad(x_start, np.asarray(True))
     before, floors = np.asarray(before), np.asarray(floors)
@@ -245,6 +232,7 @@ def codesign(
     optimizer=None,
     constraints: Mapping[Metric, float] | None = None,
     penalty: float = CONSTRAINT_PENALTY,
+    reduce: bool | None = None,
 ) -> DesignSolution:
     """Optimal design variables of ``robot`` for a fixed motion (see the module doc).
 
@@ -274,6 +262,11 @@ def codesign(
         constraints: optional ``{metric: upper bound [SI]}``, e.g. an added-mass budget
             ``{"added_mass": 2.0}``, enforced by the quadratic penalty.
         penalty: weight ``P`` of the constraint penalty.
+        reduce: evaluate the RMS force and moment from the wrench regressor computed
+            once along the motion (:mod:`~jaxbal._src.reduced_motion`; verified, else
+            the metrics are evaluated directly): ``True``, ``False``, or ``None``
+            (default) for problems of at least :data:`REDUCE_MIN_VARIABLES` variables.
+            Default optimiser only.
 
     Returns:
         A :class:`DesignSolution`.
@@ -359,7 +352,8 @@ def codesign(
         mapped=optimizer is not None,
     )
     if optimizer is None:
-        return _codesign_compact(robot, motion, x0, problem, max_steps, gtol)
+        with one_blas_thread():  # (see lbfgsb's module doc)
+            return _codesign_compact(robot, motion, x0, problem, max_steps, gtol, reduce)
     with runtime_checks(False):  # line-search trials may be non-finite (see validation)
         solution = minimize(
             design_loss,

@@ -23,6 +23,14 @@ region) is returned to L-BFGS-B as a large finite value with a zero gradient, so
 line search backtracks, and never becomes the result unless the start itself is not
 finite (then the run stops at once).
 
+**One BLAS thread.** L-BFGS-B's matrices are ``n × memory`` (tiny), but SciPy's OpenBLAS
+starts a thread pool whose spin-waiting threads fight XLA's own for the cores between
+evaluations: measured on the 2-core CPU (20-variable co-design of
+``benchmarks/codesign_bench.py``), L-BFGS-B's own time grew from 0.5 ms to 10–62 ms per
+co-design. :func:`lbfgsb` therefore limits BLAS to one thread while it runs
+(``threadpoolctl``; the limit is restored on return), and so does the default
+co-design around all its host-side linear algebra (:func:`one_blas_thread`).
+
 References:
     Byrd, Lu, Nocedal & Zhu (1995), SIAM J. Sci. Comput. 16(5), L-BFGS-B;
     Zhu, Byrd, Lu & Nocedal (1997), ACM TOMS 23(4), algorithm 778;
@@ -98,6 +106,27 @@ def lbfgsb(
         ``converged`` means the projected gradient fell below ``gtol`` or the loss could
         not be lowered by more than :data:`FTOL` relative (rounding).
     """
+    with one_blas_thread():
+        return _lbfgsb(fun, x0, lower, upper, max_steps=max_steps, gtol=gtol, memory=memory)
+
+
+#: the ``threadpoolctl`` controller, created once (it inspects the loaded libraries)
+_CONTROLLER = []
+
+
+def one_blas_thread():
+    """A context in which BLAS runs on one thread (module doc). The controller is
+    created once, after SciPy's optimisers are loaded (it limits only the BLAS libraries
+    loaded when it is created: SciPy may bring its own)."""
+    import scipy.optimize  # noqa: F401
+    from threadpoolctl import ThreadpoolController
+
+    if not _CONTROLLER:
+        _CONTROLLER.append(ThreadpoolController())
+    return _CONTROLLER[0].limit(limits=1, user_api="blas")
+
+
+def _lbfgsb(fun, x0, lower, upper, *, max_steps: int, gtol: float, memory: int) -> Result:
     # imported here: scipy.optimize takes ~0.3-0.6 s to import, a third of jaxbal's
     # import time when nothing else needs it
     from scipy.optimize import Bounds, minimize

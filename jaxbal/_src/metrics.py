@@ -54,7 +54,13 @@ from jaxbal._src.momentum import (
     checked_parameters,
     shaking_wrench,
 )
-from jaxbal._src.motion_samples import JerkMotion, Motion, as_motion, motion_samples
+from jaxbal._src.motion_samples import (
+    JerkMotion,
+    Motion,
+    ReducedMotion,
+    as_motion,
+    motion_samples,
+)
 from jaxbal._src.peak_sample import peak, peak_abs, unit_scale
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Float, Scalar
@@ -141,9 +147,19 @@ def peak_force(robot: Robot, motion: Motion) -> Scalar:
     return peak(shaking_wrench, _force, robot, motion, "shaking wrench")
 
 
+def _reduced(robot: Robot, motion, part: int):
+    """The RMS from the regressor of a :class:`ReducedMotion` (``None`` otherwise)."""
+    if not isinstance(motion, ReducedMotion):
+        return None
+    from jaxbal._src.reduced_motion import reduced_rms  # it imports this module
+
+    return reduced_rms(robot, motion, part)  # None where the motion lacks that part
+
+
 def rms_force(robot: Robot, motion: Motion) -> Scalar:
     """RMS shaking force ``sqrt(mean_t ‖f_sh(t)‖²)`` [N]."""
-    return _rms_of(_wrench(robot, motion)[0])
+    reduced = _reduced(robot, motion, 0)
+    return _rms_of(_wrench(robot, motion)[0]) if reduced is None else reduced
 
 
 def peak_moment(robot: Robot, motion: Motion) -> Scalar:
@@ -154,7 +170,8 @@ def peak_moment(robot: Robot, motion: Motion) -> Scalar:
 
 def rms_moment(robot: Robot, motion: Motion) -> Scalar:
     """RMS shaking moment about the base origin ``sqrt(mean_t ‖m_sh(t)‖²)`` [N·m]."""
-    return _rms_of(_wrench(robot, motion)[1])
+    reduced = _reduced(robot, motion, 1)
+    return _rms_of(_wrench(robot, motion)[1]) if reduced is None else reduced
 
 
 def peak_torque(robot: Robot, motion: Motion) -> Scalar:

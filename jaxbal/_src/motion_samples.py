@@ -7,6 +7,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -18,7 +19,7 @@ from jaxbal._src.trajectory import sample
 from jaxbal._src.types import Array, Float
 from jaxbal._src.validation import checked_call, raise_if_invalid
 
-__all__ = ["JerkMotion", "Motion", "as_motion", "motion_samples"]
+__all__ = ["JerkMotion", "Motion", "ReducedMotion", "as_motion", "motion_samples"]
 
 
 class Motion(NamedTuple):
@@ -41,6 +42,37 @@ class JerkMotion(NamedTuple):
     qd: Float[Array, "t dof"]
     qdd: Float[Array, "t dof"]
     qddd: Float[Array, "t dof"]
+
+
+class ReducedMotion(eqx.Module):
+    """A :class:`Motion` with its shaking-wrench regressor, for a loss evaluated many
+    times along one motion (built by :func:`jaxbal._src.reduced_motion.reduce_motion`).
+
+    ``force`` (``(r_f, c_f)``, or ``None``) holds the nonzero rows and columns of the
+    force regressor stacked over the samples (``(3 t, 10 b)``, :func:`~jaxbal._src.
+    regressor.linear_wrench`), ``force_columns`` the static indices of those columns in
+    the flattened lumped parameters; ``moment`` and ``moment_columns`` likewise.
+    :func:`~jaxbal.design.rms_force` and :func:`~jaxbal.design.rms_moment` then cost one
+    matrix-vector product; every other metric reads ``q``, ``qd``, ``qdd``. It iterates
+    as ``(q, q̇, q̈)``, like a :class:`Motion`.
+    """
+
+    q: Float[Array, "t dof"]
+    qd: Float[Array, "t dof"]
+    qdd: Float[Array, "t dof"]
+    force: Array | None
+    moment: Array | None
+    force_columns: tuple[int, ...] = eqx.field(static=True)
+    moment_columns: tuple[int, ...] = eqx.field(static=True)
+
+    def __iter__(self):
+        return iter((self.q, self.qd, self.qdd))
+
+    def __len__(self) -> int:
+        return 3
+
+    def __getitem__(self, index):
+        return (self.q, self.qd, self.qdd)[index]
 
 
 def _sample(robot, trajectory, times, order):
@@ -111,7 +143,7 @@ def as_motion(motions) -> Motion:
     (concatenated along time)."""
     if isinstance(motions, Motion):
         return motions
-    if isinstance(motions, JerkMotion):
+    if isinstance(motions, JerkMotion | ReducedMotion):
         return Motion(motions.q, motions.qd, motions.qdd)
     if isinstance(motions, tuple) and len(motions) == 3 and not isinstance(motions[0], tuple):
         return Motion(*(jnp.asarray(v, dtype=float) for v in motions))

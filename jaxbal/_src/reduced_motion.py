@@ -1,0 +1,194 @@
+"""The RMS shaking force and moment along a fixed motion as one matrix-vector product:
+the regressor fast path of :func:`jaxbal.design.codesign`.
+
+Along a fixed joint motion the shaking wrench is linear in the lumped inertial
+parameters ``π`` of the bodies (:mod:`jaxbal._src.regressor`), ``w(t) = Y(t) π``, and
+``Y`` depends only on the kinematics of the body frames. When the design variables a
+co-design optimises leave every body *frame* in place (counter-masses and their
+distances along a link, payloads, masses, inertias: they move the bodies' centres of
+mass inside their frames, not the frames), ``Y`` is the same for every candidate, so::
+
+    rms_force(robot) = ‖Y_f π(robot)‖ / √t,      Y_f = [Y_f(t_1); …; Y_f(t_t)]
+
+with ``π(robot)`` (:func:`~jaxbal._src.regressor.lumped_parameters`) the only part that
+changes. :func:`reduce_motion` evaluates ``Y`` once (one compiled program, with only the
+force or moment part a loss needs) and keeps its nonzero rows and columns (a planar
+arm's force uses ``m, h_x, h_y`` of its moving bodies: ~3 of 10 columns, 2 of 3 rows);
+the loss then costs ``rows × columns`` multiply-adds instead of the robot's kinematics
+and dynamics at every sample. The product is the direct wrench's sum reordered, so it
+cancels no worse than the direct evaluation (no Gram matrix ``YᵀY``, which would square
+the conditioning at a balanced design).
+
+That the frames stay in place is *checked*, never assumed: their tangent along a
+random direction of the free design variables must be exactly zero at three samples
+(forward mode propagates symbolic zeros, so any dependence shows); otherwise the
+co-design evaluates the metrics directly. ``Y π`` equals
+:func:`jaxbal.shaking_wrench` on every robot (tests/test_regressor.py), and the reduced
+co-design's optimum equals the direct one's (tests/test_reduced_motion.py).
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from jaxbal._src.motion_samples import Motion, ReducedMotion
+from jaxbal._src.planar import PlanarRobot
+from jaxbal._src.regressor import _columns, frame_kinematics, lumped_parameters
+from jaxbal._src.robot import Robot
+from jaxbal._src.types import Scalar
+from jaxbal._src.validation import runtime_checks
+
+__all__ = [
+    "PARTS",
+    "REDUCE_MIN_VARIABLES",
+    "reduce_motion",
+    "reduced_rms",
+    "reduces",
+    "wanted_parts",
+]
+
+#: metric name -> part of the wrench its reduced form needs (0: force, 1: moment)
+PARTS = {"rms_force": 0, "rms_moment": 1}
+#: ``reduce=None`` reduces problems of at least this many scalar design variables: below,
+#: compiling the regressor costs more than the evaluations it saves (measured in
+#: ``benchmarks/codesign_bench.py``)
+REDUCE_MIN_VARIABLES = 10
+#: while :func:`wanted_parts` probes a callable metric: the parts it asked for
+_WANTED: set | None = None
+
+
+def reduced_rms(robot: Robot, motion: ReducedMotion, part: int) -> Scalar:
+    """RMS of the shaking force (``part`` 0) or moment about the base origin (1) along
+    ``motion`` [N or N·m], from its regressor; ``None`` where the motion lacks it."""
+    from jaxbal._src.metrics import _rms  # metrics dispatches here: imported late
+
+    if part == 0:
+        matrix, columns = motion.force, motion.force_columns
+    else:
+        matrix, columns = motion.moment, motion.moment_columns
+    if matrix is None:
+        if _WANTED is not None:  # a probe of the parts a callable metric uses
+            _WANTED.add(part)
+            return jnp.zeros(())
+        return None
+    parameters = jnp.ravel(lumped_parameters(robot))[np.asarray(columns, dtype=int)]
+    values = matrix @ parameters
+    return _rms(values[None, :]) / jnp.sqrt(float(motion.q.shape[0]))
+
+
+def _frames(robot: Robot, q):
+    if isinstance(robot, PlanarRobot):
+        return robot.planar_frames(q)
+    return robot.body_frames(q)
+
+
+def _frames_tangent(robot: Robot, free, direction, q) -> jax.Array:
+    """Largest ``|∂ frames/∂ design · direction|`` at the states ``q (k, dof)``: exactly
+    zero where the frames do not depend on the free design variables ``free``."""
+    design = {name: jnp.asarray(robot.design()[name], dtype=float) for name in free}
+
+    def frames(d, q_):
+        return _frames(robot.with_design(d), q_)
+
+    def largest(q_):
+        _, tangent = jax.jvp(lambda d: frames(d, q_), (design,), (direction,))
+        return jnp.max(jnp.stack([jnp.max(jnp.abs(t)) for t in jax.tree_util.tree_leaves(tangent)]))
+
+    return jnp.max(jax.vmap(largest)(q))
+
+
+@partial(jax.jit, static_argnums=(0, 1))
+def _regressor(parts: tuple[bool, bool], free, robot: Robot, motion: Motion, direction):
+    """The regressor's force and moment parts ``(t, 3, 10 b)`` wanted by ``parts``, and
+    :func:`_frames_tangent` at three samples (one compiled program per structure)."""
+    with runtime_checks(False):
+        force, moment = jax.vmap(lambda *s: _columns(frame_kinematics(robot, *s)))(*motion)
+        # the force is independent of the inertia columns (module doc of the regressor)
+        force = force.at[..., 4:].set(0.0)
+        samples = np.unique(np.linspace(0, motion.q.shape[0] - 1, 3).astype(int))
+        tangent = _frames_tangent(robot, free, direction, motion.q[samples])
+    return (force if parts[0] else None, moment if parts[1] else None), tangent
+
+
+#: ``(callable metrics, robot structure)`` -> parts they use (:func:`wanted_parts`)
+_PROBED: dict = {}
+
+
+def reduces(reduce: bool | None, variables: int, motion) -> bool:
+    """Whether a co-design of ``variables`` scalars with ``reduce`` (``None``: auto)
+    evaluates along a :class:`ReducedMotion` (a plain :class:`Motion` only)."""
+    if reduce is None:
+        reduce = variables >= REDUCE_MIN_VARIABLES
+    return bool(reduce) and isinstance(motion, Motion)
+
+
+def wanted_parts(robot: Robot, motion: Motion, metrics) -> tuple[bool, bool]:
+    """Whether the ``metrics`` (names or callables) use the RMS force / moment: names
+    are looked up, callables traced abstractly once per robot structure
+    (``jax.eval_shape``) with a probe motion whose reduced RMS records the part used."""
+    global _WANTED
+    from jaxbal._src.metrics import resolve_metric
+
+    wanted = {PARTS[m] for m in metrics if isinstance(m, str) and m in PARTS}
+    callables = tuple(m for m in metrics if not isinstance(m, str))
+    if callables:
+        try:
+            key = (callables, jax.tree_util.tree_structure(robot))
+            hash(key)
+        except TypeError:  # an unhashable callable: probed every time
+            key = None
+        if key not in _PROBED:
+            probe = ReducedMotion(motion.q, motion.qd, motion.qdd, None, None, (), ())
+            _WANTED = set()
+            try:
+                with runtime_checks(False):
+                    jax.eval_shape(
+                        lambda r: [resolve_metric(m)(r, probe) for m in callables], robot
+                    )
+                found = frozenset(_WANTED)
+            finally:
+                _WANTED = None
+            if key is None:
+                wanted |= found
+            else:
+                _PROBED[key] = found
+        if key is not None:
+            wanted |= _PROBED[key]
+    return 0 in wanted, 1 in wanted
+
+
+def reduce_motion(
+    robot: Robot, motion: Motion, free: tuple[str, ...], metrics
+) -> ReducedMotion | None:
+    """``motion`` with the regressor parts the ``metrics`` need (see the module doc), or
+    ``None`` where none is needed or a free variable moves a body frame (e.g. a link
+    length)."""
+    if isinstance(motion, ReducedMotion):
+        return None
+    parts = wanted_parts(robot, motion, metrics)
+    if not any(parts):
+        return None
+    design = robot.design()
+    generator = np.random.default_rng(0)
+    direction = {n: generator.standard_normal(np.shape(design[n])) for n in free}
+    regressors, tangent = _regressor(parts, tuple(free), robot, motion, direction)
+    if float(tangent) != 0.0:
+        return None
+    t = motion.q.shape[0]
+    matrices, columns = [], []
+    for regressor in regressors:
+        if regressor is None:
+            matrices.append(None)
+            columns.append(())
+            continue
+        stacked = np.asarray(regressor).reshape(3 * t, -1)
+        nonzero = stacked != 0.0
+        rows, cols = np.any(nonzero, axis=1), np.flatnonzero(np.any(nonzero, axis=0))
+        # R of Y = Q R: ‖Y π‖ = ‖R π‖, with min(rows, columns) rows
+        matrices.append(jnp.asarray(np.linalg.qr(stacked[rows][:, cols], mode="r")))
+        columns.append(tuple(int(c) for c in cols))
+    return ReducedMotion(motion.q, motion.qd, motion.qdd, *matrices, *columns)
