@@ -30,7 +30,6 @@ from jaxbal._src.metrics import (
     resolve_metric,
 )
 from jaxbal._src.momentum import replayed, total_mass
-from jaxbal._src.motion_samples import ReducedMotion
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
 from jaxbal._src.validation import runtime_checks
@@ -195,6 +194,7 @@ def _unflatten(x, layout) -> dict[str, Array]:
 COMPILER_OPTIONS = {"xla_backend_optimization_level": 0}
 
 
+@partial(jax.jit, static_argnums=(0, 1), compiler_options=COMPILER_OPTIONS)
 def _loss_grad_flat(layout, structure, x, leaves, at_start):
     """:func:`_loss_grad` of the flat parameters ``x``, with the robot, motion and
     problem as a flat list of array leaves (``structure``: their tree and static part):
@@ -205,17 +205,6 @@ def _loss_grad_flat(layout, structure, x, leaves, at_start):
     loss, grad, values, floors = _loss_grad(_unflatten(x, layout), robot, motion, problem, at_start)
     grad = jnp.concatenate([jnp.ravel(grad[name]) for name, _ in layout])
     return loss, grad, values, floors
-
-
-_loss_grad_direct = partial(jax.jit, static_argnums=(0, 1), compiler_options=COMPILER_OPTIONS)(
-    _loss_grad_flat
-)
-#: with a :class:`~jaxbal._src.motion_samples.ReducedMotion` the program is small and
-#: its compile time short: XLA's default optimisation (evaluations 4x faster than at
-#: level 0 on the 20-variable arm)
-_loss_grad_reduced = partial(jax.jit, static_argnums=(0, 1), compiler_options=COMPILER_OPTIONS)(
-    _loss_grad_flat
-)
 
 
 class _Structure:
@@ -243,10 +232,8 @@ def loss_grad_function(robot: Robot, motion: Motion, problem: _Problem, layout):
     leaves, treedef = jax.tree_util.tree_flatten(dynamic)
     structure = _Structure((treedef, static))
 
-    program = _loss_grad_reduced if isinstance(motion, ReducedMotion) else _loss_grad_direct
-
     def call(x, at_start):
-        return program(layout, structure, x, leaves, at_start)
+        return _loss_grad_flat(layout, structure, x, leaves, at_start)
 
     return call
 

@@ -12,18 +12,18 @@ mass inside their frames, not the frames), ``Y`` is the same for every candidate
 
 with ``π(robot)`` (:func:`~jaxbal._src.regressor.lumped_parameters`) the only part that
 changes. :func:`reduce_motion` evaluates ``Y`` once (one compiled program, with only the
-force or moment part a loss needs) and keeps its nonzero rows and columns (a planar
-arm's force uses ``m, h_x, h_y`` of its moving bodies: ~3 of 10 columns, 2 of 3 rows);
-the loss then costs ``rows × columns`` multiply-adds instead of the robot's kinematics
-and dynamics at every sample. The product is the direct wrench's sum reordered, so it
-cancels no worse than the direct evaluation (no Gram matrix ``YᵀY``, which would square
-the conditioning at a balanced design).
+force or moment part a loss needs), keeps its nonzero rows and columns (a planar
+arm's force uses ``m, h_x, h_y`` of its moving bodies: ~3 of 10 columns, 2 of 3 rows)
+and their triangular QR factor ``R`` (``‖Y π‖ = ‖R π‖``); the loss then costs
+``columns²`` multiply-adds instead of the robot's kinematics and dynamics at every
+sample. No Gram matrix ``YᵀY`` is formed, which would square the conditioning at a
+balanced design.
 
 That the frames stay in place is *checked*, never assumed: their tangent along a
 random direction of the free design variables must be exactly zero at three samples
 (forward mode propagates symbolic zeros, so any dependence shows); otherwise the
 co-design evaluates the metrics directly. ``Y π`` equals
-:func:`jaxbal.shaking_wrench` on every robot (tests/test_regressor.py), and the reduced
+:func:`jaxbal.shaking_wrench` on every robot (tests/test_balancing.py), and the reduced
 co-design's optimum equals the direct one's (tests/test_reduced_motion.py).
 """
 
