@@ -1,8 +1,8 @@
 """The regressor fast path of the co-design (jaxbal._src.reduced_motion): the reduced RMS
-force and moment equal the direct metrics, value and gradient, on a serial arm and on the
-closed-chain DUAL-V; the reduced co-design reaches the direct one's optimum; a design
-variable that moves a body frame is detected; and the host-driven L-BFGS-B restores the
-BLAS thread limit it sets."""
+force and moment and the added inertia equal the direct metrics, value and gradient, on a
+serial arm and on the closed-chain DUAL-V; the reduced co-design reaches the direct one's
+optimum; a design variable that moves a body frame is detected; and the host-driven
+L-BFGS-B restores the BLAS thread limit it sets."""
 
 import jax
 import jax.numpy as jnp
@@ -13,7 +13,14 @@ import jaxbal
 from jaxbal._src.lbfgsb import one_blas_thread
 from jaxbal._src.reduced_motion import reduce_motion, wanted_parts
 from jaxbal._src.robots.planar_arm import PlanarArm
-from jaxbal.design import Motion, codesign, motion_samples, rms_force, rms_moment
+from jaxbal.design import (
+    Motion,
+    added_inertia,
+    codesign,
+    motion_samples,
+    rms_force,
+    rms_moment,
+)
 
 
 def _arm_motion(dof: int, samples: int = 200) -> Motion:
@@ -56,19 +63,22 @@ def _designs(robot):
 @pytest.mark.parametrize("case", ["arm", "dual_v"])
 def test_reduced_rms_equals_the_direct_metric(case, request):
     robot, motion = request.getfixturevalue(case)
-    reduced = reduce_motion(robot, motion, FREE, ("rms_force", "rms_moment"))
+    reduced = reduce_motion(robot, motion, FREE, ("rms_force", "rms_moment", "added_inertia"))
     assert reduced is not None and reduced.force is not None and reduced.moment is not None
+    assert reduced.inertia is not None
     # the QR factor has at most as many rows as the kept columns
     assert reduced.force.shape[0] <= len(reduced.force_columns)
     for design in _designs(robot):
         candidate = robot.with_design(design)
-        for metric in (rms_force, rms_moment):
+        for metric in (rms_force, rms_moment, added_inertia):
             direct = float(metric(candidate, motion))
             fast = float(jax.jit(metric)(candidate, reduced))
             np.testing.assert_allclose(fast, direct, rtol=1e-11)
+            assert abs(direct) > 1e-3  # a real, non-trivial value
 
         def loss(x, m):
-            return rms_force(robot.with_design(x), m) + rms_moment(robot.with_design(x), m)
+            r = robot.with_design(x)
+            return rms_force(r, m) + rms_moment(r, m) + 10.0 * added_inertia(r, m)
 
         x = {n: jnp.asarray(v) for n, v in design.items()}
         grad_direct = jax.grad(loss)(x, motion)
@@ -87,12 +97,18 @@ def test_only_the_parts_in_use_are_built(arm):
     def neither(r, m):
         return jaxbal.design.peak_force(r, m)
 
-    assert wanted_parts(robot, motion, ("rms_force", "added_mass")) == (True, False)
-    assert wanted_parts(robot, motion, (moment_only,)) == (False, True)
-    assert wanted_parts(robot, motion, (neither, "peak_moment")) == (False, False)
+    def inertia_only(r, m):
+        return added_inertia(r, m) ** 2
+
+    assert wanted_parts(robot, motion, ("rms_force", "added_mass")) == (True, False, False)
+    assert wanted_parts(robot, motion, (moment_only,)) == (False, True, False)
+    assert wanted_parts(robot, motion, (neither, "peak_moment")) == (False, False, False)
+    assert wanted_parts(robot, motion, (inertia_only, "rms_force")) == (True, False, True)
     assert reduce_motion(robot, motion, FREE, (neither,)) is None
     reduced = reduce_motion(robot, motion, FREE, (moment_only,))
-    assert reduced.force is None and reduced.moment is not None
+    assert reduced.force is None and reduced.moment is not None and reduced.inertia is None
+    reduced = reduce_motion(robot, motion, FREE, (inertia_only,))
+    assert reduced.force is None and reduced.moment is None and reduced.inertia is not None
 
 
 class _LengthArm(PlanarArm):
@@ -111,7 +127,7 @@ def test_a_variable_that_moves_a_frame_is_evaluated_directly(arm):
 
 def test_reduced_codesign_reaches_the_direct_optimum(arm):
     robot, motion = arm
-    objective = {"rms_force": 1.0, "rms_moment": 0.1, "added_mass": 0.1}
+    objective = {"rms_force": 1.0, "rms_moment": 0.1, "added_mass": 0.1, "added_inertia": 0.1}
     solutions = [
         codesign(robot, motion, objective, free=FREE, gtol=1e-12, max_steps=300, reduce=flag)
         for flag in (True, False)

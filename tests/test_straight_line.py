@@ -208,3 +208,34 @@ def test_code_too_large_to_pay_off_runs_as_written(monkeypatch):
     plain = jax.make_jaxpr(straight_line(f))(x)  # a new wrapper: its own cache
     assert str(plain) == str(jax.make_jaxpr(f)(x)) != str(replayed_code)
     np.testing.assert_allclose(float(jax.jit(straight_line(f))(x)), float(f(x)), rtol=1e-15)
+
+
+def repeated(q):
+    """The same cosine, sine and sum recomputed, as a chain's poses do for each body,
+    and a product written in both operand orders."""
+    c, s = jnp.cos(q[0]), jnp.sin(q[0])
+    again = jnp.cos(q[0]) * q[1] + q[1] * jnp.cos(q[0])
+    return jnp.stack([c * s, jnp.sin(q[0]) * jnp.cos(q[0]), again, (q[0] + q[1]) * (q[1] + q[0])])
+
+
+def test_repeated_operations_are_emitted_once():
+    """Common subexpressions of the replay (jaxbal/_src/scalar_rules.py): each distinct
+    operation once (commuted sums and products included), the same bits as without."""
+    from jax.extend import core
+
+    q = jnp.asarray([0.3, -1.2])
+
+    def names(jaxpr):
+        out = []
+        for eqn in jaxpr.eqns:
+            subs = list(core.jaxprs_in_params(eqn.params))
+            out += [n for sub in subs for n in names(sub)] if subs else [eqn.primitive.name]
+        return out
+
+    names = names(jax.make_jaxpr(straight_line(repeated))(q).jaxpr)
+    assert names.count("cos") == 1 and names.count("sin") == 1, names
+    assert names.count("add") == 2, names  # q0 + q1 once; the doubled product once
+    expected = jax.jit(repeated)(q)
+    actual = jax.jit(straight_line(repeated))(q)
+    np.testing.assert_array_equal(actual, expected)
+    check_grads(jax.jit(straight_line(repeated)), (q,), order=1, modes=["rev", "fwd"])

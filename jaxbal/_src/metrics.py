@@ -147,13 +147,16 @@ def peak_force(robot: Robot, motion: Motion) -> Scalar:
     return peak(shaking_wrench, _force, robot, motion, "shaking wrench")
 
 
-def _reduced(robot: Robot, motion, part: int):
-    """The RMS from the regressor of a :class:`ReducedMotion` (``None`` otherwise)."""
+def _reduced(robot: Robot, motion, part: int, bare=None):
+    """The RMS force (``part`` 0) or moment (1), or the added inertia (2, with the
+    ``bare`` robot), from the regressor of a :class:`ReducedMotion` (``None`` otherwise)."""
     if not isinstance(motion, ReducedMotion):
         return None
-    from jaxbal._src.reduced_motion import reduced_rms  # it imports this module
+    from jaxbal._src.reduced_motion import reduced_added_inertia, reduced_rms  # circular
 
-    return reduced_rms(robot, motion, part)  # None where the motion lacks that part
+    if part == 2:
+        return reduced_added_inertia(robot, bare, motion)  # None where the motion lacks it
+    return reduced_rms(robot, motion, part)
 
 
 def rms_force(robot: Robot, motion: Motion) -> Scalar:
@@ -262,6 +265,9 @@ def added_inertia(robot: Robot, motion: Motion) -> Scalar:
     design = robot.design()
     zeroed = {n: jnp.zeros_like(design[n]) for n in ADDED_MASS_VARIABLES if n in design}
     bare = robot.with_design(zeroed)
+    reduced = _reduced(robot, motion, 2, bare)
+    if reduced is not None:
+        return reduced
     q0 = motion.q[0]
     return base_inertia(robot, q0) - base_inertia(bare, q0)
 

@@ -52,9 +52,12 @@ class ReducedMotion(eqx.Module):
     force regressor stacked over the samples (``(3 t, 10 b)``, :func:`~jaxbal._src.
     regressor.linear_wrench`), ``force_columns`` the static indices of those columns in
     the flattened lumped parameters; ``moment`` and ``moment_columns`` likewise.
-    :func:`~jaxbal.design.rms_force` and :func:`~jaxbal.design.rms_moment` then cost one
-    matrix-vector product; every other metric reads ``q``, ``qd``, ``qdd``. It iterates
-    as ``(q, q̇, q̈)``, like a :class:`Motion`.
+    ``inertia`` (``(10 b,)``, or ``None``) is the row of the base inertia about the
+    vertical axis at ``q[0]`` over the flattened lumped parameters.
+    :func:`~jaxbal.design.rms_force`, :func:`~jaxbal.design.rms_moment` and
+    :func:`~jaxbal.design.added_inertia` then cost one matrix-vector product; every other
+    metric reads ``q``, ``qd``, ``qdd``. It iterates as ``(q, q̇, q̈)``, like a
+    :class:`Motion`.
     """
 
     q: Float[Array, "t dof"]
@@ -62,6 +65,7 @@ class ReducedMotion(eqx.Module):
     qdd: Float[Array, "t dof"]
     force: Array | None
     moment: Array | None
+    inertia: Array | None
     force_columns: tuple[int, ...] = eqx.field(static=True)
     moment_columns: tuple[int, ...] = eqx.field(static=True)
 

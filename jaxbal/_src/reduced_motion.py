@@ -37,7 +37,7 @@ import numpy as np
 
 from jaxbal._src.motion_samples import Motion, ReducedMotion
 from jaxbal._src.planar import PlanarRobot
-from jaxbal._src.regressor import _columns, frame_kinematics, lumped_parameters
+from jaxbal._src.regressor import _SYMMETRIC, _columns, frame_kinematics, lumped_parameters
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Scalar
 from jaxbal._src.validation import runtime_checks
@@ -46,13 +46,15 @@ __all__ = [
     "PARTS",
     "REDUCE_MIN_VARIABLES",
     "reduce_motion",
+    "reduced_added_inertia",
     "reduced_rms",
     "reduces",
     "wanted_parts",
 ]
 
-#: metric name -> part of the wrench its reduced form needs (0: force, 1: moment)
-PARTS = {"rms_force": 0, "rms_moment": 1}
+#: metric name -> part of the regressor its reduced form needs (0: force, 1: moment,
+#: 2: the base inertia's row at the first sample)
+PARTS = {"rms_force": 0, "rms_moment": 1, "added_inertia": 2}
 #: ``reduce=None`` reduces problems of at least this many scalar design variables: below,
 #: compiling the regressor costs more than the evaluations it saves (measured in
 #: ``benchmarks/codesign_bench.py``)
@@ -80,6 +82,33 @@ def reduced_rms(robot: Robot, motion: ReducedMotion, part: int) -> Scalar:
     return _rms(values[None, :]) / jnp.sqrt(float(motion.q.shape[0]))
 
 
+def reduced_added_inertia(robot: Robot, bare: Robot, motion: ReducedMotion) -> Scalar:
+    """:func:`~jaxbal.design.added_inertia` [kg·m²] from the base inertia's row ``a`` at
+    ``q[0]``: ``a · (π(robot) − π(bare))``; ``None`` where the motion lacks the row."""
+    if motion.inertia is None:
+        if _WANTED is not None:  # a probe of the parts a callable metric uses
+            _WANTED.add(2)
+            return jnp.zeros(())
+        return None
+    added = jnp.ravel(lumped_parameters(robot)) - jnp.ravel(lumped_parameters(bare))
+    return motion.inertia @ added
+
+
+def _inertia_row(frames) -> jax.Array:
+    """``(b, 10)``: the base inertia about the vertical axis, ``J_z = Σ_b a_b · π_b``,
+    as a row over the lumped parameters (:data:`~jaxbal._src.regressor.LUMPED`) of bodies
+    whose frames have origins ``o`` and rotations ``R``: ``m (o_x² + o_y²)``
+    + ``2 (o_x (R h)_x + o_y (R h)_y)`` + ``r_zᵀ J r_z`` (``r_z`` the third row of ``R``;
+    :func:`~jaxbal.design.base_inertia` with the COM ``o + R h/m``)."""
+    o, rotation = frames.origin, frames.rotation
+    r = rotation[:, 2, :]
+    first = 2.0 * (o[:, :1] * rotation[:, 0, :] + o[:, 1:2] * rotation[:, 1, :])
+    spin = [r[:, i] * r[:, j] * (1.0 if i == j else 2.0) for i, j in _SYMMETRIC]
+    return jnp.concatenate(
+        [(o[:, 0] ** 2 + o[:, 1] ** 2)[:, None], first, jnp.stack(spin, -1)], axis=-1
+    )
+
+
 def _frames(robot: Robot, q):
     if isinstance(robot, PlanarRobot):
         return robot.planar_frames(q)
@@ -102,16 +131,22 @@ def _frames_tangent(robot: Robot, free, direction, q) -> jax.Array:
 
 
 @partial(jax.jit, static_argnums=(0, 1))
-def _regressor(parts: tuple[bool, bool], free, robot: Robot, motion: Motion, direction):
-    """The regressor's force and moment parts ``(t, 3, 10 b)`` wanted by ``parts``, and
-    :func:`_frames_tangent` at three samples (one compiled program per structure)."""
+def _regressor(parts: tuple[bool, ...], free, robot: Robot, motion: Motion, direction):
+    """The regressor's force and moment parts ``(t, 3, 10 b)`` and the base inertia's row
+    at ``q[0]`` ``(b, 10)`` wanted by ``parts``, and :func:`_frames_tangent` at three
+    samples (one compiled program per structure)."""
     with runtime_checks(False):
-        force, moment = jax.vmap(lambda *s: _columns(frame_kinematics(robot, *s)))(*motion)
-        # the force is independent of the inertia columns (module doc of the regressor)
-        force = force.at[..., 4:].set(0.0)
+        out = [None, None, None]
+        if parts[0] or parts[1]:
+            force, moment = jax.vmap(lambda *s: _columns(frame_kinematics(robot, *s)))(*motion)
+            # the force is independent of the inertia columns (module doc of the regressor)
+            out[0] = force.at[..., 4:].set(0.0) if parts[0] else None
+            out[1] = moment if parts[1] else None
+        if parts[2]:
+            out[2] = _inertia_row(frame_kinematics(robot, *(x[0] for x in motion)))
         samples = np.unique(np.linspace(0, motion.q.shape[0] - 1, 3).astype(int))
         tangent = _frames_tangent(robot, free, direction, motion.q[samples])
-    return (force if parts[0] else None, moment if parts[1] else None), tangent
+    return tuple(out), tangent
 
 
 #: ``(callable metrics, robot structure)`` -> parts they use (:func:`wanted_parts`)
@@ -126,8 +161,9 @@ def reduces(reduce: bool | None, variables: int, motion) -> bool:
     return bool(reduce) and isinstance(motion, Motion)
 
 
-def wanted_parts(robot: Robot, motion: Motion, metrics) -> tuple[bool, bool]:
-    """Whether the ``metrics`` (names or callables) use the RMS force / moment: names
+def wanted_parts(robot: Robot, motion: Motion, metrics) -> tuple[bool, bool, bool]:
+    """Whether the ``metrics`` (names or callables) use the RMS force / moment / added
+    inertia (:data:`PARTS`): names
     are looked up, callables traced abstractly once per robot structure
     (``jax.eval_shape``) with a probe motion whose reduced RMS records the part used."""
     global _WANTED
@@ -142,7 +178,7 @@ def wanted_parts(robot: Robot, motion: Motion, metrics) -> tuple[bool, bool]:
         except TypeError:  # an unhashable callable: probed every time
             key = None
         if key not in _PROBED:
-            probe = ReducedMotion(motion.q, motion.qd, motion.qdd, None, None, (), ())
+            probe = ReducedMotion(motion.q, motion.qd, motion.qdd, None, None, None, (), ())
             _WANTED = set()
             try:
                 with runtime_checks(False):
@@ -158,7 +194,7 @@ def wanted_parts(robot: Robot, motion: Motion, metrics) -> tuple[bool, bool]:
                 _PROBED[key] = found
         if key is not None:
             wanted |= _PROBED[key]
-    return 0 in wanted, 1 in wanted
+    return 0 in wanted, 1 in wanted, 2 in wanted
 
 
 def reduce_motion(
@@ -180,7 +216,7 @@ def reduce_motion(
         return None
     t = motion.q.shape[0]
     matrices, columns = [], []
-    for regressor in regressors:
+    for regressor in regressors[:2]:
         if regressor is None:
             matrices.append(None)
             columns.append(())
@@ -191,4 +227,5 @@ def reduce_motion(
         # R of Y = Q R: ‖Y π‖ = ‖R π‖, with min(rows, columns) rows
         matrices.append(jnp.asarray(np.linalg.qr(stacked[rows][:, cols], mode="r")))
         columns.append(tuple(int(c) for c in cols))
-    return ReducedMotion(motion.q, motion.qd, motion.qdd, *matrices, *columns)
+    inertia = None if regressors[2] is None else jnp.ravel(regressors[2])
+    return ReducedMotion(motion.q, motion.qd, motion.qdd, *matrices, inertia, *columns)

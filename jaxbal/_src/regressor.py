@@ -92,10 +92,12 @@ CLEAN_RTOL = 1e-10
 
 def _of_bodies(bodies: Bodies) -> Array:
     m, c, inertia = bodies.mass, bodies.com, bodies.inertia
-    shift = jnp.sum(c**2, -1)[:, None, None] * jnp.eye(3) - c[:, :, None] * c[:, None, :]
-    about_origin = inertia + m[:, None, None] * shift
-    entries = [about_origin[:, i, j] for i, j in _SYMMETRIC]
-    return jnp.stack([m, *(m[:, None] * c).T, *entries], axis=-1)
+    h = m[:, None] * c
+    # J = I + m (‖c‖² 1 − c cᵀ), entry by entry (:data:`_SYMMETRIC`): the diagonal
+    # I_ii + m (‖c‖² − c_i²), the products I_ij − m c_i c_j (no (b, 3, 3) temporaries)
+    diagonal = jnp.diagonal(inertia, axis1=1, axis2=2) + (jnp.sum(h * c, -1)[:, None] - h * c)
+    products = [inertia[:, i, j] - h[:, i] * c[:, j] for i, j in _SYMMETRIC[3:]]
+    return jnp.concatenate([m[:, None], h, diagonal, jnp.stack(products, -1)], axis=-1)
 
 
 def lumped_parameters(robot: Robot) -> Array:

@@ -129,8 +129,57 @@ def _is_value(x, value) -> bool:
     return concrete(x) and np.ndim(x) == 0 and x == value and np.isfinite(x)
 
 
+#: While :func:`shared_subexpressions` is active: ``key -> (result, args)`` of the scalar
+#: operations emitted so far, so that an operation repeated on the same inputs (the same
+#: ``cos q_1`` of several bodies' poses, the same product in a cross product and in its
+#: derivative) is emitted once. The arguments are kept so that their ids stay unique.
+_EMITTED: dict | None = None
+
+
+class shared_subexpressions:
+    """A context in which :func:`_scalar_op` emits each distinct operation once
+    (common-subexpression elimination: the same primitive with the same parameters on
+    the same traced values or constants returns the earlier result, bit for bit)."""
+
+    def __enter__(self):
+        global _EMITTED
+        self._outer, _EMITTED = _EMITTED, {}
+        return self
+
+    def __exit__(self, *exc):
+        global _EMITTED
+        _EMITTED = self._outer
+
+
+#: binary operations whose result does not depend on the order of their operands
+_COMMUTATIVE = {"add", "add_any", "mul"}
+
+
+def _operand_key(x):
+    if concrete(x):
+        return ("c", str(x.dtype), np.asarray(x).tobytes())
+    return ("t", id(x))
+
+
 def _scalar_op(name, primitive, params, args, dtype):
-    """One elementwise primitive on scalar ``args`` (constants folded, exact 0/1 dropped)."""
+    """One elementwise primitive on scalar ``args`` (constants folded, exact 0/1 dropped,
+    and, within :class:`shared_subexpressions`, repeated operations emitted once)."""
+    if _EMITTED is None or all(concrete(a) for a in args):
+        return _emit(name, primitive, params, args, dtype)
+    try:
+        operands = tuple(map(_operand_key, args))
+        if name in _COMMUTATIVE:  # a + b and b + a are the same bits (IEEE 754)
+            operands = tuple(sorted(operands, key=repr))
+        key = (name, tuple(sorted(params.items())), str(dtype), *operands)
+        hash(key)
+    except TypeError:  # an unhashable parameter: emitted without sharing
+        return _emit(name, primitive, params, args, dtype)
+    if key not in _EMITTED:
+        _EMITTED[key] = (_emit(name, primitive, params, args, dtype), args)
+    return _EMITTED[key][0]
+
+
+def _emit(name, primitive, params, args, dtype):
     if all(concrete(a) for a in args):
         if name in _NUMPY:
             with np.errstate(all="ignore"):

@@ -35,6 +35,7 @@ from jaxbal._src.scalar_rules import (
     ELEMENTWISE,
     elementwise,
     join,
+    shared_subexpressions,
     split,
     structural,
 )
@@ -151,7 +152,8 @@ def _generate(fn, leaves, treedef, traced):
     flat_shapes, out_tree = jax.tree_util.tree_flatten(shapes)
 
     def program(*values):
-        outs = evaluate(closed.jaxpr, closed.consts, [split(v) for v in values])
+        with shared_subexpressions():
+            outs = evaluate(closed.jaxpr, closed.consts, [split(v) for v in values])
         return [join(o, s.dtype) for o, s in zip(outs, flat_shapes, strict=True)]
 
     # The generated program is traced once and kept as one jaxpr: later traces (under
