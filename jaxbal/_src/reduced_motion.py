@@ -11,13 +11,15 @@ mass inside their frames, not the frames), ``Y`` is the same for every candidate
     rms_force(robot) = ‖Y_f π(robot)‖ / √t,      Y_f = [Y_f(t_1); …; Y_f(t_t)]
 
 with ``π(robot)`` (:func:`~jaxbal._src.regressor.lumped_parameters`) the only part that
-changes. :func:`reduce_motion` evaluates ``Y`` once (one compiled program, with only the
-force or moment part a loss needs), keeps its nonzero rows and columns (a planar
-arm's force uses ``m, h_x, h_y`` of its moving bodies: ~3 of 10 columns, 2 of 3 rows)
-and their triangular QR factor ``R`` (``‖Y π‖ = ‖R π‖``); the loss then costs
-``columns²`` multiply-adds instead of the robot's kinematics and dynamics at every
-sample. No Gram matrix ``YᵀY`` is formed, which would square the conditioning at a
-balanced design.
+changes. The added inertia (:func:`~jaxbal.design.added_inertia`, the base inertia about
+the vertical axis at ``q[0]``) is linear in ``π`` too: ``a · (π(robot) − π(bare))`` with
+``a`` the row of :func:`_inertia_row`, computed with ``Y``. :func:`reduce_motion`
+evaluates ``Y`` once (one compiled program, with only the parts a loss needs), keeps
+its nonzero rows and columns (a planar arm's force uses ``m, h_x, h_y`` of its moving
+bodies: ~3 of 10 columns, 2 of 3 rows) and their triangular QR factor ``R``
+(``‖Y π‖ = ‖R π‖``); the loss then costs ``columns²`` multiply-adds instead of the
+robot's kinematics and dynamics at every sample. No Gram matrix ``YᵀY`` is formed,
+which would square the conditioning at a balanced design.
 
 That the frames stay in place is *checked*, never assumed: their tangent along a
 random direction of the free design variables must be exactly zero at three samples
