@@ -311,7 +311,7 @@ def test_compiled_codesign_has_no_callbacks(motion_2r):
     layout = (("counter_mass", (2,)),)
     dynamic, static = eqx.partition((arm, motion_2r, problem), eqx.is_array)
     leaves, treedef = jax.tree_util.tree_flatten(dynamic)
-    lowered = design._loss_grad_flat.lower(
+    lowered = design.loss_grad_program().lower(
         layout, design._Structure((treedef, static)), jnp.ones(2), leaves, np.asarray(False)
     )
     text = lowered.as_text()

@@ -61,9 +61,11 @@ from collections.abc import Mapping
 from typing import Any, NamedTuple
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._src.design_compiled import COMPILED_MAX_VARIABLES, compiled_function
 from jaxbal._src.design_loss import (
     SCALE_FLOOR,
     START_OFFSET,
@@ -91,6 +93,7 @@ from jaxbal._src.metrics import (
     resolve_metric,
 )
 from jaxbal._src.momentum import check_robot
+from jaxbal._src.motion_samples import ReducedMotion
 from jaxbal._src.optimize import minimize
 from jaxbal._src.reduced_motion import REDUCE_MIN_VARIABLES, reduce_motion, reduces
 from jaxbal._src.robot import Robot
@@ -151,18 +154,37 @@ class DesignSolution(NamedTuple):
 def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol, reduce):
     """:func:`codesign` with the default optimiser: the host-driven L-BFGS-B of
     :mod:`jaxbal._src.lbfgsb` around one compiled program (:func:`_loss_grad`), in the
-    design variables themselves (``problem.mapped`` False)."""
+    design variables themselves (``problem.mapped`` False); along a reduced motion with
+    few variables, the compiled BFGS loop of :mod:`jaxbal._src.design_compiled`."""
     params = _to_params(x0, problem)
     layout = tuple((name, tuple(np.shape(params[name]))) for name in problem.free)
     x_start = np.concatenate([np.ravel(np.asarray(params[n], dtype=float)) for n in problem.free])
     everything = _everything(problem)
     labels = [metric_name(m) for m in everything]
-    n = len(problem.terms)
-    where = np.asarray([everything.index(m) for m in problem.constrained], dtype=int)
     # the starting design as given: its metric values set the scales (module doc)
     check_robot(robot)  # an invalid robot is refused before the program compiles
     if reduces(reduce, x_start.size, motion):
         motion = reduce_motion(robot, motion, problem.free, everything) or motion
+    lower = np.concatenate([np.ravel(np.asarray(lo, dtype=float)) for lo in problem.lower])
+    upper = np.concatenate(
+        [
+            np.ravel(np.asarray(hi, dtype=float)) if two else np.full(np.size(hi), np.inf)
+            for hi, two in zip(problem.upper, problem.two_sided, strict=True)
+        ]
+    )
+    if isinstance(motion, ReducedMotion) and x_start.size <= COMPILED_MAX_VARIABLES:
+        run = compiled_function(robot, motion, problem, layout, max_steps)
+        given = np.concatenate(
+            [np.ravel(np.asarray(x0[name], dtype=float)) for name in problem.free]
+        )
+        result = jax.tree_util.tree_map(np.asarray, run(x_start, given, lower, upper, gtol))
+        before, scales, bound_scales = result.context
+        if not np.all(np.isfinite(before)):
+            _raise_invalid_start(motion, labels, before)
+        problem = eqx.tree_at(lambda p: (p.scales, p.bound_scales), problem, (scales, bound_scales))
+        return _solution(robot, result, result.aux, before, problem, layout, lower, upper)
+    n = len(problem.terms)
+    where = np.asarray([everything.index(m) for m in problem.constrained], dtype=int)
     loss_grad = loss_grad_function(robot, motion, problem, layout)
     _, _, before, floors = loss_grad(x_start, np.asarray(True))
     before, floors = np.asarray(before), np.asarray(floors)
@@ -183,23 +205,26 @@ def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol, red
         loss, grad, values, _ = loss_grad(x, at_start)
         return float(loss), np.asarray(grad), values
 
-    lower = np.concatenate([np.ravel(np.asarray(lo, dtype=float)) for lo in problem.lower])
-    upper = np.concatenate(
-        [
-            np.ravel(np.asarray(hi, dtype=float)) if two else np.full(np.size(hi), np.inf)
-            for hi, two in zip(problem.upper, problem.two_sided, strict=True)
-        ]
-    )
     result = lbfgsb(evaluate, x_start, lower, upper, max_steps=max_steps, gtol=gtol)
+    return _solution(robot, result, result.aux, before, problem, layout, lower, upper)
+
+
+def _solution(robot, result, after, before, problem, layout, lower, upper) -> DesignSolution:
+    """The :class:`DesignSolution` of an optimiser's ``result`` (the final point ``x``,
+    loss, gradient, steps, convergence and history) with the metric values ``after``
+    at that point and ``before`` at the start, on the host."""
     # on the host: compiling `_designed` cost more than the whole L-BFGS run after the
     # first evaluation (DUAL-V 0.14 s, 10-link arm 0.06 s; eagerly 0.08 s and 1 ms)
     optimised = robot.with_design(_to_design_numpy(_unflatten(result.x, layout), problem))
-    optimised_design = optimised.design()
-    after = np.asarray(result.aux)
-    bounds = np.asarray(problem.bounds)
+    everything = _everything(problem)
+    labels = [metric_name(m) for m in everything]
+    n = len(problem.terms)
+    where = np.asarray([everything.index(m) for m in problem.constrained], dtype=int)
+    after = np.asarray(after)
+    bounds, bound_scales = np.asarray(problem.bounds), np.asarray(problem.bound_scales)
     excess = after[where] - bounds
     return DesignSolution(
-        design=optimised_design,
+        design=optimised.design(),
         robot=optimised,
         value=np.asarray(result.value),
         initial_value=np.asarray(_combine_numpy(before[:n], before[where], problem)),

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from collections.abc import Mapping
-from functools import partial
+from functools import cache
 from typing import Any
 
 import equinox as eqx
@@ -22,6 +22,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._src.config import compiler_options
 from jaxbal._src.metrics import (
     ADDED_MASS_VARIABLES,
     Motion,
@@ -185,17 +186,25 @@ def _unflatten(x, layout) -> dict[str, Array]:
     return params
 
 
-#: XLA options of the default co-design's program: LLVM's optimisation level 0. The
-#: program runs tens of times and is compiled once per structure, so its compile time
-#: is most of a first co-design: measured on the 2-core CPU (fresh cache), the DUAL-V's
-#: compile 0.57 -> 0.47 s and the 20-variable arm's 0.79 -> 0.51 s, for 1.0 -> 1.6 ms
-#: and 0.83 -> 1.24 ms per evaluation (20 and 43 evaluations per co-design). The
+#: LLVM optimisation level of the default co-design's program (with XLA:CPU's elemental
+#: emitters, :func:`jaxbal._src.config.compiler_options`). The program runs tens of
+#: times and is compiled once per structure, so its compile time is most of a first
+#: co-design: measured on the 2-core CPU (fresh cache), level 0 instead of 3 cut the
+#: DUAL-V's compile 0.57 -> 0.47 s and the 20-variable arm's 0.79 -> 0.51 s, for 1.0 ->
+#: 1.6 ms and 0.83 -> 1.24 ms per evaluation (20 and 43 evaluations per co-design). The
 #: arithmetic is the same (no fast-math at any level); the tests compare the optima
 #: with SLSQP's and with closed forms.
-COMPILER_OPTIONS = {"xla_backend_optimization_level": 0}
+OPTIMIZATION_LEVEL = 0
 
 
-@partial(jax.jit, static_argnums=(0, 1), compiler_options=COMPILER_OPTIONS)
+@cache
+def loss_grad_program():
+    """The jitted :func:`_loss_grad_flat` (built on first use: its compiler options
+    probe the backend, which importing jaxbal must not start)."""
+    options = compiler_options(OPTIMIZATION_LEVEL)
+    return jax.jit(_loss_grad_flat, static_argnums=(0, 1), compiler_options=options)
+
+
 def _loss_grad_flat(layout, structure, x, leaves, at_start):
     """:func:`_loss_grad` of the flat parameters ``x``, with the robot, motion and
     problem as a flat list of array leaves (``structure``: their tree and static part):
@@ -255,9 +264,10 @@ def loss_grad_function(robot: Robot, motion: Motion, problem: _Problem, layout):
     dynamic, static = eqx.partition((robot, motion, problem), eqx.is_array)
     leaves, treedef = jax.tree_util.tree_flatten(dynamic)
     structure = _structure((treedef, static))
+    program = loss_grad_program()
 
     def call(x, at_start):
-        return _loss_grad_flat(layout, structure, x, leaves, at_start)
+        return program(layout, structure, x, leaves, at_start)
 
     return call
 
