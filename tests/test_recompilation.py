@@ -64,10 +64,15 @@ def test_sensitivity_compiles_once(setup):
     assert _compiles_of(call, robot, other) == 0
 
 
-def test_codesign_compiles_once(setup):
+@pytest.mark.parametrize("reduce", [False, True])
+def test_codesign_compiles_once(setup, reduce):
+    """Both optimisers: L-BFGS-B around one program, and (``reduce=True``) the compiled
+    BFGS loop along the reduced motion (the other payload is a new reduction)."""
     robot, other, _, _, motion = setup
 
     def call(r):
-        return jaxbal.design.codesign(r, motion, "rms_force", free=("counter_mass",), max_steps=5)
+        return jaxbal.design.codesign(
+            r, motion, "rms_force", free=("counter_mass",), max_steps=5, reduce=reduce
+        )
 
     assert _compiles_of(call, robot, other) == 0
