@@ -297,11 +297,11 @@ def codesign(
         constrained=constrained,
         lower=lows,
         upper=highs,
-        weights=jnp.asarray(weights),
-        scales=jnp.asarray(scales),
-        bounds=jnp.asarray(bounds, dtype=float),
-        bound_scales=jnp.asarray(bound_scales, dtype=float),
-        penalty=jnp.asarray(penalty, dtype=float),
+        weights=np.asarray(weights, dtype=float),
+        scales=np.asarray(scales, dtype=float),
+        bounds=np.asarray(bounds, dtype=float),
+        bound_scales=np.asarray(bound_scales, dtype=float),
+        penalty=np.asarray(penalty, dtype=float),
         mapped=optimizer is not None,
     )
     if optimizer is None:

@@ -110,7 +110,7 @@ def _to_params(design: Mapping[str, np.ndarray], problem: _Problem) -> dict[str,
         else:
             inside = np.maximum(x, lo + START_OFFSET)
             params[name] = np.sqrt(inside - lo) if problem.mapped else inside
-        params[name] = jnp.asarray(params[name], dtype=float)
+        params[name] = np.asarray(params[name], dtype=float)
     return params
 
 
@@ -340,8 +340,8 @@ def _bounds(robot, free, lower, upper):
         hi = np.broadcast_to(finite_array(f"upper[{name!r}]", upper[name]), shape) if two else lo
         if two and not np.all(hi > lo):
             raise ValueError(f"upper[{name!r}] = {hi!r} must exceed lower = {lo!r}")
-        lows.append(jnp.asarray(lo, dtype=float))
-        highs.append(jnp.asarray(hi, dtype=float))
+        lows.append(np.asarray(lo, dtype=float))
+        highs.append(np.asarray(hi, dtype=float))
         two_sided.append(bool(two))
     return tuple(lows), tuple(highs), tuple(two_sided)
 

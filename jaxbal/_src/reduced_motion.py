@@ -32,13 +32,14 @@ co-design's optimum equals the direct one's (tests/test_reduced_motion.py).
 from __future__ import annotations
 
 from collections import OrderedDict
-from functools import partial
+from functools import cache
 
 import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._src.config import compiler_options
 from jaxbal._src.motion_samples import Motion, ReducedMotion
 from jaxbal._src.planar import PlanarRobot
 from jaxbal._src.regressor import _SYMMETRIC, _columns, frame_kinematics, lumped_parameters
@@ -134,7 +135,16 @@ def _frames_tangent(robot: Robot, free, direction, q) -> jax.Array:
     return jnp.max(jax.vmap(largest)(q))
 
 
-@partial(jax.jit, static_argnums=(0, 1))
+@cache
+def _regressor_program():
+    """The jitted :func:`_regressor`, with XLA:CPU's elemental emitters
+    (:func:`jaxbal._src.config.compiler_options`; built on first use). It runs once per
+    reduction, so its compile time is what a user waits for: measured on the 2-core CPU
+    (20-variable arm of ``benchmarks/codesign_bench.py``), the first co-design in a
+    fresh process took 1.24 s with them and 1.29 s without (one run each: about the noise)."""
+    return jax.jit(_regressor, static_argnums=(0, 1), compiler_options=compiler_options(3))
+
+
 def _regressor(parts: tuple[bool, ...], free, robot: Robot, motion: Motion, direction):
     """The regressor's force and moment parts ``(t, 3, 10 b)`` and the base inertia's row
     at ``q[0]`` ``(b, 10)`` wanted by ``parts``, and :func:`_frames_tangent` at three
@@ -249,7 +259,7 @@ def _reduced_parts(robot: Robot, motion: Motion, free: tuple[str, ...], parts):
     design = robot.design()
     generator = np.random.default_rng(0)
     direction = {n: generator.standard_normal(np.shape(design[n])) for n in free}
-    regressors, tangent = _regressor(parts, free, robot, motion, direction)
+    regressors, tangent = _regressor_program()(parts, free, robot, motion, direction)
     if float(tangent) != 0.0:
         return None
     t = motion.q.shape[0]
