@@ -58,14 +58,17 @@ def enable_compilation_cache() -> None:
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
 
 
+def _plus_one(x):
+    return x + 1.0
+
+
 @cache
 def _knows_fusion_emitter_option() -> bool:
     """Whether this jaxlib accepts ``xla_cpu_use_fusion_emitters`` (probed once, by
     compiling a one-operation program)."""
     try:
-        jax.jit(lambda x: x + 1.0, compiler_options={"xla_cpu_use_fusion_emitters": False}).lower(
-            1.0
-        ).compile()
+        options = {"xla_cpu_use_fusion_emitters": False}
+        jax.jit(_plus_one, compiler_options=options).lower(1.0).compile()
     except Exception:  # noqa: BLE001 - an unknown option: XLA's error type varies
         return False
     return True
