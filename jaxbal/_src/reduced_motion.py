@@ -135,14 +135,22 @@ def _frames_tangent(robot: Robot, free, direction, q) -> jax.Array:
     return jnp.max(jax.vmap(largest)(q))
 
 
+#: from this many samples on, the regressor's program is compiled with LLVM's
+#: optimisations (level 3), below without (level 0). It runs once per reduction, so its
+#: compile time is what a user waits for: measured on the 2-core CPU (20-variable arm of
+#: ``benchmarks/codesign_bench.py``, with XLA:CPU's elemental emitters), level 0
+#: compiled in 0.13–0.14 s and ran in 5.4 ms at 500 samples, 145 ms at 20,000; level 3
+#: 0.32–0.35 s, 1.5 ms and 63 ms. The first co-design in a fresh process went from
+#: 1.23–1.36 s to 1.04–1.09 s.
+OPTIMIZED_SAMPLES = 50_000
+
+
 @cache
-def _regressor_program():
-    """The jitted :func:`_regressor`, with XLA:CPU's elemental emitters
-    (:func:`jaxbal._src.config.compiler_options`; built on first use). It runs once per
-    reduction, so its compile time is what a user waits for: measured on the 2-core CPU
-    (20-variable arm of ``benchmarks/codesign_bench.py``), the first co-design in a
-    fresh process took 1.24 s with them and 1.29 s without (one run each: about the noise)."""
-    return jax.jit(_regressor, static_argnums=(0, 1), compiler_options=compiler_options(3))
+def _regressor_program(level: int):
+    """The jitted :func:`_regressor` at LLVM optimisation ``level``, with XLA:CPU's
+    elemental emitters (:func:`jaxbal._src.config.compiler_options`; built on first
+    use)."""
+    return jax.jit(_regressor, static_argnums=(0, 1), compiler_options=compiler_options(level))
 
 
 def _regressor(parts: tuple[bool, ...], free, robot: Robot, motion: Motion, direction):
@@ -259,7 +267,8 @@ def _reduced_parts(robot: Robot, motion: Motion, free: tuple[str, ...], parts):
     design = robot.design()
     generator = np.random.default_rng(0)
     direction = {n: generator.standard_normal(np.shape(design[n])) for n in free}
-    regressors, tangent = _regressor_program()(parts, free, robot, motion, direction)
+    level = 3 if motion.q.shape[0] >= OPTIMIZED_SAMPLES else 0
+    regressors, tangent = _regressor_program(level)(parts, free, robot, motion, direction)
     if float(tangent) != 0.0:
         return None
     t = motion.q.shape[0]
