@@ -32,6 +32,7 @@ from pathlib import Path  # noqa: E402
 
 import jax  # noqa: E402
 import mujoco  # noqa: E402
+import numpy as np  # noqa: E402
 
 from jaxbal.report import atomic_write_text  # noqa: E402
 
@@ -42,19 +43,32 @@ import wrench_bench  # noqa: E402
 from cases import MOVES  # noqa: E402
 from readme_block import TARGETS, update_readme  # noqa: E402
 
+#: pairs of fresh processes (cold, then warm on the same new cache) per robot and check
+#: mode; each time reported is the median over the pairs (one pair's first calls varied
+#: by up to 30 % from one run to the next on the 2-core CPU)
+FIRST_CALL_PAIRS = 3
+
 
 def first_calls(name: str, checks: bool) -> dict:
-    """First-call latency of two fresh processes sharing one new compilation cache."""
-    with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, JAXBAL_CACHE_DIR=cache, PYTHONPATH=str(HERE))
-        env.pop("XLA_FLAGS", None)
-        command = [sys.executable, str(HERE / "first_call.py"), name]
-        command += [] if checks else ["--no-checks"]
-        runs = []
-        for _ in range(2):
-            out = subprocess.run(command, env=env, capture_output=True, text=True, check=True)
-            runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
-    return {"cold": runs[0], "warm": runs[1]}
+    """First-call latency of fresh processes: :data:`FIRST_CALL_PAIRS` pairs, each a
+    cold process and a warm one sharing a new compilation cache; the median of each
+    time over the pairs."""
+    command = [sys.executable, str(HERE / "first_call.py"), name]
+    command += [] if checks else ["--no-checks"]
+    pairs = []
+    for _ in range(FIRST_CALL_PAIRS):
+        with tempfile.TemporaryDirectory() as cache:
+            env = dict(os.environ, JAXBAL_CACHE_DIR=cache, PYTHONPATH=str(HERE))
+            env.pop("XLA_FLAGS", None)
+            runs = []
+            for _ in range(2):
+                out = subprocess.run(command, env=env, capture_output=True, text=True, check=True)
+                runs.append(json.loads(out.stdout.strip().splitlines()[-1]))
+        pairs.append(runs)
+    return {
+        mode: {key: float(np.median([runs[i][key] for runs in pairs])) for key in pairs[0][i]}
+        for i, mode in enumerate(("cold", "warm"))
+    }
 
 
 def sweep_section(designs: int, budget_mib: float) -> dict:

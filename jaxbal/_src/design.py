@@ -41,7 +41,13 @@ gradient (with the metric values, the scale floors and a validity mask of the gi
 robot and motion): a host-driven L-BFGS-B (:mod:`jaxbal._src.lbfgsb`) calls it once per
 evaluation, so the first co-design of a process compiles one copy of the dynamics, and
 the program, free of runtime-error callbacks, is kept by the persistent compilation
-cache for the next process. An invalid robot or motion (e.g. a negative mass set with
+cache for the next process. Along a reduced motion (``reduce=``: the metrics from the
+wrench regressor, :mod:`jaxbal._src.reduced_motion`) with at most
+:data:`~jaxbal._src.design_compiled.COMPILED_MAX_VARIABLES` scalar variables, each
+evaluation costs microseconds, so the host round trips would dominate: there the whole
+co-design (scales, a projected BFGS loop, :mod:`jaxbal._src.box_bfgs`, and the final
+metric values) is one compiled program, dispatched once
+(:mod:`jaxbal._src.design_compiled`). An invalid robot or motion (e.g. a negative mass set with
 ``eqx.tree_at``) is raised eagerly, with the names of the offending values. With
 ``optimizer=`` an optax transformation, the whole loop is compiled
 (:func:`jaxbal.minimize`). Either way a second call on a robot of the same structure,
@@ -209,7 +215,8 @@ def codesign(
             ``optimizer=``, the gradient norm) falls below this.
         optimizer: ``None`` (default): SciPy's L-BFGS-B (bounds held natively) driven
             from the host around one compiled value-and-gradient (fast first call, see
-            the module doc); or an optax transformation (e.g. ``optax.lbfgs()``,
+            the module doc), or along a reduced motion a projected BFGS compiled as one
+            program with the whole co-design; or an optax transformation (e.g. ``optax.lbfgs()``,
             ``optax.adam(1e-2)``) run as one compiled loop by :func:`jaxbal.minimize`;
             pass the same object on every call to reuse the compiled loop.
         constraints: optional ``{metric: upper bound [SI]}``, e.g. an added-mass budget
