@@ -185,3 +185,41 @@ def test_non_finite_state_is_named_when_the_check_guards_the_outputs():
     with pytest.raises(ValueError, match="non-finite state"):
         state = (q[0], bad_qd[3], qdd[0])  # concrete arrays, closed over by the jit
         jax.jit(lambda r: jaxbal.shaking_wrench(r, *state))(robot)
+
+
+@pytest.mark.parametrize(
+    ("max_steps", "gtol", "match"),
+    [
+        (0, 1e-10, "max_steps"),
+        (-3, 1e-10, "max_steps"),
+        (2.5, 1e-10, "max_steps"),
+        (True, 1e-10, "max_steps"),
+        (10, float("nan"), "gtol"),
+        (10, -1e-9, "gtol"),
+        (10, float("inf"), "gtol"),
+        (10, "tight", "gtol"),
+    ],
+)
+def test_optimisers_refuse_a_bad_stopping_rule(max_steps, gtol, match):
+    """A NaN gtol used to run silently to max_steps and report no convergence; every
+    optimiser entry point names the bad value before anything compiles."""
+    arm = jaxbal.robots.planar_2r()
+    q = jnp.zeros((4, 2))
+    motion = jaxbal.design.Motion(q, q, q)
+    with pytest.raises(ValueError, match=match):
+        jaxbal.design.codesign(arm, motion, max_steps=max_steps, gtol=gtol)
+    with pytest.raises(ValueError, match=match):
+        jaxbal.minimize(lambda x: jnp.sum(x**2), jnp.ones(2), max_steps=max_steps, gtol=gtol)
+    with pytest.raises(ValueError, match=match):
+        jaxbal.design.joint_codesign(
+            arm, None, {}, trajectory_lower={}, trajectory_upper={},
+            max_steps=max_steps, gtol=gtol,
+        )  # fmt: skip
+
+
+def test_a_good_stopping_rule_passes():
+    """The check accepts NumPy integers, a zero tolerance and a traced tolerance."""
+    from jaxbal._src.validation import check_stopping
+
+    check_stopping(np.int64(5), 0.0)
+    jax.jit(lambda g: check_stopping(3, g) or g)(1e-8)

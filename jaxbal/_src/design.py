@@ -102,7 +102,7 @@ from jaxbal._src.motion_samples import ReducedMotion
 from jaxbal._src.optimize import minimize
 from jaxbal._src.reduced_motion import REDUCE_MIN_VARIABLES, reduce_motion, reduces
 from jaxbal._src.robot import Robot
-from jaxbal._src.validation import runtime_checks
+from jaxbal._src.validation import check_stopping, runtime_checks
 
 __all__ = [
     "CONSTRAINT_PENALTY",
@@ -235,9 +235,10 @@ def codesign(
         ValueError: an unknown metric or design-variable name (the message lists the
             valid ones), an empty ``free``, a non-finite start or bound, a start
             outside the bounds, a negative budget of a named metric, a negative or
-            non-finite ``penalty``, ``max_steps < 1``, a motion of the wrong shape,
-            or an invalid robot or motion (negative or non-finite masses, inertias or
-            parameters, a non-finite state, non-finite starting metrics).
+            non-finite ``penalty``, ``max_steps < 1``, a NaN or negative ``gtol``, a
+            motion of the wrong shape, or an invalid robot or motion (negative or
+            non-finite masses, inertias or parameters, a non-finite state, non-finite
+            starting metrics).
     """
     motion = as_motion(motions)
     if motion.q.ndim != 2 or motion.q.shape[1] != robot.dof:
@@ -260,8 +261,7 @@ def codesign(
             )
     if not (np.isfinite(float(penalty)) and float(penalty) >= 0):
         raise ValueError(f"penalty must be finite and >= 0, got {penalty!r}")
-    if not (isinstance(max_steps, int | np.integer) and max_steps >= 1):
-        raise ValueError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+    check_stopping(max_steps, gtol)
 
     design = robot.design()
     if free is None:

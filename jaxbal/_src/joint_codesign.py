@@ -58,7 +58,7 @@ from jaxbal._src.momentum import check_robot, replayed
 from jaxbal._src.optimize import minimize
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
-from jaxbal._src.validation import checked_call, runtime_checks
+from jaxbal._src.validation import check_stopping, checked_call, runtime_checks
 
 __all__ = ["CONSTRAINT_RTOL", "JointSolution", "joint_codesign", "payload_metrics"]
 
@@ -250,6 +250,7 @@ def joint_codesign(
     """
     if robust not in ("mean", "max"):
         raise ValueError(f"robust must be 'mean' or 'max', got {robust!r}")
+    check_stopping(max_steps, gtol)
     terms, weights = _objective_terms(objective)
     constraints = dict(constraints or {})
     constrained = tuple(constraints)

@@ -25,6 +25,8 @@ import jax
 import jax.numpy as jnp
 import optax
 
+from jaxbal._src.validation import check_stopping
+
 
 class Solution(NamedTuple):
     """Result of :func:`minimize`.
@@ -71,7 +73,12 @@ def minimize(
         max_steps: iteration cap.
         gtol: stop when the gradient norm falls below this.
         args: extra pytree arguments of ``loss`` (data; not optimised).
+
+    Raises:
+        ValueError: ``max_steps`` not an integer ``>= 1``, or ``gtol`` not a finite
+            number ``>= 0``.
     """
+    check_stopping(max_steps, gtol)
     optimizer = _DEFAULT_OPTIMIZER if optimizer is None else optimizer
     return _run(loss, optimizer, _is_lbfgs(optimizer), max_steps, gtol, params, args)
 

@@ -52,6 +52,24 @@ def check_nonnegative(name: str, value) -> None:
         raise ValueError(f"{name} must be non-negative, got {arr!r}")
 
 
+def check_stopping(max_steps, gtol) -> None:
+    """Raise ``ValueError`` unless ``max_steps`` is an integer ``>= 1`` and ``gtol`` a
+    finite number ``>= 0`` (an optimiser's stopping rule: a NaN ``gtol`` silently ran to
+    ``max_steps`` and reported no convergence, a negative ``max_steps`` failed deep in
+    the loop's set-up). A traced ``gtol`` is left alone."""
+    integral = isinstance(max_steps, int | np.integer) and not isinstance(max_steps, bool)
+    if not (integral and max_steps >= 1):
+        raise ValueError(f"max_steps must be an integer >= 1, got {max_steps!r}")
+    if is_traced(gtol):
+        return
+    try:
+        value = float(gtol)
+    except (TypeError, ValueError):
+        raise ValueError(f"gtol must be a finite number >= 0, got {gtol!r}") from None
+    if not (np.isfinite(value) and value >= 0):
+        raise ValueError(f"gtol must be a finite number >= 0, got {gtol!r}")
+
+
 def check_shape(name: str, value, shape: tuple[int | None, ...]) -> None:
     """Raise ``ValueError`` at trace time if ``value``'s shape does not match ``shape``.
 
