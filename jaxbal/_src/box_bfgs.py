@@ -41,6 +41,7 @@ from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import lax
 
 from jaxbal._src.lbfgs import ARMIJO, MAX_BACKTRACKS
@@ -85,20 +86,22 @@ class BoxResult(NamedTuple):
     context: Any
 
 
-def _update(hessian, s, y, first):
+def _update(hessian, s, y, first, xp=jnp):
     """Damped BFGS update of the Hessian approximation (``first``: scaled identity
-    before it)."""
-    sy = jnp.dot(s, y)
-    scale = jnp.dot(y, y) / sy
-    usable = first & (sy > 0) & jnp.isfinite(scale)
-    hessian = jnp.where(usable, scale * jnp.eye(s.size, dtype=s.dtype), hessian)
-    hs = hessian @ s
-    shs = jnp.dot(s, hs)
-    theta = jnp.where(sy >= DAMPING * shs, 1.0, (1.0 - DAMPING) * shs / (shs - sy))
-    r = theta * y + (1.0 - theta) * hs
-    updated = hessian - jnp.outer(hs, hs) / shs + jnp.outer(r, r) / jnp.dot(s, r)
-    good = (shs > 0) & jnp.all(jnp.isfinite(updated))
-    return jnp.where(good, 0.5 * (updated + updated.T), hessian)
+    before it), in the array namespace ``xp`` (``jax.numpy``, or ``numpy`` for the
+    host-driven :mod:`jaxbal._src.host_bfgs`)."""
+    with np.errstate(divide="ignore", invalid="ignore"):  # masked below
+        sy = xp.dot(s, y)
+        scale = xp.dot(y, y) / sy
+        usable = first & (sy > 0) & xp.isfinite(scale)
+        hessian = xp.where(usable, scale * xp.eye(s.size, dtype=s.dtype), hessian)
+        hs = hessian @ s
+        shs = xp.dot(s, hs)
+        theta = xp.where(sy >= DAMPING * shs, 1.0, (1.0 - DAMPING) * shs / (shs - sy))
+        r = theta * y + (1.0 - theta) * hs
+        updated = hessian - xp.outer(hs, hs) / shs + xp.outer(r, r) / xp.dot(s, r)
+        good = (shs > 0) & xp.all(xp.isfinite(updated))
+    return xp.where(good, 0.5 * (updated + updated.T), hessian)
 
 
 def _solve(matrix, rhs):

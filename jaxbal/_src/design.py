@@ -1,10 +1,12 @@
 """Counter-mass co-design of any robot: optimise its design variables for a fixed motion.
 
 :func:`codesign` minimises a weighted sum of metrics (:mod:`jaxbal._src.metrics`) over
-the robot's named design variables (:meth:`jaxbal.Robot.design`) with L-BFGS-B
-(:mod:`jaxbal._src.lbfgsb` by default, or an optax optimiser in
-:func:`jaxbal.minimize`). The joint motion is *held fixed* (sequential design, as in
-the papers: counter-masses do not change the inverse kinematics).
+the robot's named design variables (:meth:`jaxbal.Robot.design`) with a bound-constrained
+quasi-Newton method (by default :mod:`jaxbal._src.host_bfgs`, L-BFGS-B's iteration with
+a dense BFGS matrix, up to 64 variables, and SciPy's L-BFGS-B, :mod:`jaxbal._src.lbfgsb`,
+above), or an optax optimiser in :func:`jaxbal.minimize`. The joint motion is *held
+fixed* (sequential design, as in the papers: counter-masses do not change the inverse
+kinematics).
 
 **Loss.** With metric values ``v_i``, weights ``w_i`` and scales ``s_i``::
 
@@ -20,7 +22,7 @@ of weight ``P = penalty`` (default :data:`CONSTRAINT_PENALTY`), scaled by ``σ_j
 ``|b_j|`` floored as above; a penalty is inexact, so a constraint counts as satisfied
 within the relative tolerance :data:`FEASIBILITY_RTOL`.
 
-**Bounds.** The default optimiser, L-BFGS-B, holds them itself and optimises the
+**Bounds.** The default optimisers hold them themselves (projected steps) and optimise the
 design variables directly, so a loss quadratic in them (RMS force, added mass and
 inertia of counter-masses) stays quadratic (2–4× fewer evaluations than the bound map
 below, measured in ``benchmarks/codesign_bench.py``). An optax optimiser is
@@ -38,8 +40,8 @@ is clipped onto it.
 problem)``; names, metric choices and bound kinds are static fields of ``problem``, all
 numbers are array leaves. By default the only compiled program is the loss's value and
 gradient (with the metric values, the scale floors and a validity mask of the given
-robot and motion): a host-driven L-BFGS-B (:mod:`jaxbal._src.lbfgsb`) calls it once per
-evaluation, so the first co-design of a process compiles one copy of the dynamics, and
+robot and motion): the host-driven optimiser (:mod:`jaxbal._src.host_bfgs`) calls it
+once per evaluation, so the first co-design of a process compiles one copy of the dynamics, and
 the program, free of runtime-error callbacks, is kept by the persistent compilation
 cache for the next process. Along a reduced motion (``reduce=``: the metrics from the
 wrench regressor, :mod:`jaxbal._src.reduced_motion`) with at most
@@ -88,7 +90,8 @@ from jaxbal._src.design_loss import (
     loss_grad_function,
 )
 from jaxbal._src.design_solution import FEASIBILITY_RTOL, DesignSolution, _solution
-from jaxbal._src.lbfgsb import lbfgsb, one_blas_thread
+from jaxbal._src.host_bfgs import HOST_MAX_VARIABLES, host_bfgs
+from jaxbal._src.lbfgsb import lbfgsb
 from jaxbal._src.metrics import (
     Metric,
     as_motion,
@@ -120,8 +123,9 @@ BOUND_RTOL = 1e-12
 
 
 def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol, reduce):
-    """:func:`codesign` with the default optimiser: the host-driven L-BFGS-B of
-    :mod:`jaxbal._src.lbfgsb` around one compiled program (:func:`_loss_grad`), in the
+    """:func:`codesign` with the default optimiser: the host-driven BFGS of
+    :mod:`jaxbal._src.host_bfgs` (above :data:`~jaxbal._src.host_bfgs.HOST_MAX_VARIABLES`
+    variables SciPy's L-BFGS-B) around one compiled program (:func:`_loss_grad`), in the
     design variables themselves (``problem.mapped`` False); along a reduced motion with
     few variables, the compiled BFGS loop of :mod:`jaxbal._src.design_compiled`."""
     params = _to_params(x0, problem)
@@ -173,7 +177,9 @@ def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol, red
         loss, grad, values, _ = loss_grad(x, at_start)
         return float(loss), np.asarray(grad), values
 
-    result = lbfgsb(evaluate, x_start, lower, upper, max_steps=max_steps, gtol=gtol)
+    # a dense BFGS in NumPy for a few variables (no SciPy import: host_bfgs's doc)
+    optimise = host_bfgs if x_start.size <= HOST_MAX_VARIABLES else lbfgsb
+    result = optimise(evaluate, x_start, lower, upper, max_steps=max_steps, gtol=gtol)
     return _solution(robot, result, result.aux, before, problem, layout, lower, upper)
 
 
@@ -210,15 +216,16 @@ def codesign(
         upper: optional upper bounds by name (the others are unbounded above).
         start: starting values by name (default: the robot's); any design variable
             may be given, the non-free ones are simply set.
-        max_steps: L-BFGS iteration cap.
+        max_steps: quasi-Newton iteration cap.
         gtol: stop when the projected gradient of the loss (largest component; with
             ``optimizer=``, the gradient norm) falls below this.
-        optimizer: ``None`` (default): SciPy's L-BFGS-B (bounds held natively) driven
-            from the host around one compiled value-and-gradient (fast first call, see
-            the module doc), or along a reduced motion a projected BFGS compiled as one
-            program with the whole co-design; or an optax transformation (e.g. ``optax.lbfgs()``,
-            ``optax.adam(1e-2)``) run as one compiled loop by :func:`jaxbal.minimize`;
-            pass the same object on every call to reuse the compiled loop.
+        optimizer: ``None`` (default): a bound-constrained BFGS (L-BFGS-B above 64
+            variables) driven from the host around one compiled value-and-gradient
+            (fast first call, see the module doc), or along a reduced motion a
+            projected BFGS compiled as one program with the whole co-design; or an
+            optax transformation (e.g. ``optax.lbfgs()``, ``optax.adam(1e-2)``) run as
+            one compiled loop by :func:`jaxbal.minimize`; pass the same object on every
+            call to reuse the compiled loop.
         constraints: optional ``{metric: upper bound [SI]}``, e.g. an added-mass budget
             ``{"added_mass": 2.0}``, enforced by the quadratic penalty.
         penalty: weight ``P`` of the constraint penalty.
@@ -312,8 +319,7 @@ def codesign(
         mapped=optimizer is not None,
     )
     if optimizer is None:
-        with one_blas_thread():  # (see lbfgsb's module doc)
-            return _codesign_compact(robot, motion, x0, problem, max_steps, gtol, reduce)
+        return _codesign_compact(robot, motion, x0, problem, max_steps, gtol, reduce)
     with runtime_checks(False):  # line-search trials may be non-finite (see validation)
         solution = minimize(
             design_loss,

@@ -1,5 +1,7 @@
 """Bound-constrained L-BFGS (SciPy's L-BFGS-B) driven from the host around one compiled
-value-and-gradient: the default optimiser of :func:`jaxbal.design.codesign`.
+value-and-gradient: the optimiser of :func:`jaxbal.design.codesign` above
+:data:`~jaxbal._src.host_bfgs.HOST_MAX_VARIABLES` design variables (below, the dense
+BFGS of :mod:`jaxbal._src.host_bfgs`, which needs no SciPy import).
 
 The design variables are optimised directly, their bounds held by L-BFGS-B's projected
 search (generalised Cauchy point, then a quasi-Newton step on the free variables), so
@@ -28,8 +30,7 @@ starts a thread pool whose spin-waiting threads fight XLA's own for the cores be
 evaluations: measured on the 2-core CPU (20-variable co-design of
 ``benchmarks/codesign_bench.py``), L-BFGS-B's own time grew from 0.5 ms to 10–62 ms per
 co-design. :func:`lbfgsb` therefore limits BLAS to one thread while it runs
-(``threadpoolctl``; the limit is restored on return), and so does the default
-co-design around all its host-side linear algebra (:func:`one_blas_thread`).
+(``threadpoolctl``; the limit is restored on return).
 
 References:
     Byrd, Lu, Nocedal & Zhu (1995), SIAM J. Sci. Comput. 16(5), L-BFGS-B;
