@@ -13,6 +13,10 @@ distinct operation once (the same ``cos q_1`` of every body's pose, the same pro
 in a force and in its derivative: ~40 % fewer operations to trace, transform under
 ``grad``/``vmap`` and compile; XLA's own CSE made the runtime the same).
 
+The generated code's transcendentals are then computed once per state and read back
+by every output (:mod:`jaxbal._src.materialise`: XLA's CPU fusion would copy them into
+each output's loop).
+
 Primitives the interpreter does not know (``cond``, callbacks, ``gather``, loops …) are
 evaluated on re-assembled arrays, exactly as :func:`jax.core.eval_jaxpr` would, so any
 function is accepted; the result is the same function of the same inputs (the same
@@ -32,6 +36,7 @@ import jax
 import numpy as np
 from jax.extend import core
 
+from jaxbal._src.materialise import schedule, scheduled
 from jaxbal._src.scalar_rules import (
     CALLS,
     CUSTOM,
@@ -165,6 +170,9 @@ def _generate(fn, leaves, treedef, traced):
     generated = jax.make_jaxpr(program)(*specs)
     if len(generated.jaxpr.eqns) > MAX_GENERATED:
         return None
+    if scheduled(generated):
+        # the transcendentals computed once per state and read back (materialise.py)
+        generated = jax.make_jaxpr(functools.partial(schedule, generated))(*specs)
     return jax.jit(core.jaxpr_as_fun(generated)), out_tree
 
 
