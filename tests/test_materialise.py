@@ -100,3 +100,27 @@ def test_the_dual_v_wrench_computes_each_joint_sine_once():
     assert expected == 1
     # 8 distinct angles (its 8 bodies); previously each copied into both outputs' loops
     assert sines_in(text) <= 8
+
+
+@pytest.mark.skipif(jax.default_backend() != "cpu", reason="the CPU's fusion")
+def test_constants_still_fold():
+    """Transcendentals of values that are constants of the compiled program (a motion
+    captured by ``jit``) fold at compile time, boundary included: the predicate is read
+    from an input they depend on, not from the program's first input."""
+
+    def reordered(w, q0, q1):
+        return scalar_program(q0, q1, w)
+
+    closed_w = jax.make_jaxpr(reordered)(ARGS[2], ARGS[0], ARGS[1])
+    q0, q1, w = (jnp.linspace(-1.0, 1.0, 256) + k for k in range(3))
+
+    def program(w):  # w at run time; q0, q1 (cos q0, sin(q0 + q1)) constants
+        return jax.vmap(lambda *a: schedule(closed_w, *a))(w, q0, q1)
+
+    text = jax.jit(program).lower(w).compile().as_text()
+    assert " cosine(" not in text  # cos q0 folded
+    assert sines_in(text) == 1  # sin(cos q0 · w), at run time
+    # one boundary (sin(cos q0 · w)); none on the constants, whose users fold with them
+    assert text.count("conditional(") == 1
+    for a, e in zip(jax.jit(program)(w), jax.vmap(scalar_program)(q0, q1, w), strict=True):
+        np.testing.assert_allclose(a, e, rtol=1e-13, atol=1e-16)

@@ -12,8 +12,11 @@ does not stop this on the CPU (its pipeline removes the barrier before fusion).
 inputs are ready) pass together through :func:`materialise`, which writes them to
 memory; the operations that use them read them back. On the CPU :func:`materialise` is
 a ``lax.cond`` whose branches both return their operand unchanged (XLA keeps a
-conditional as a boundary no fusion crosses; the predicate is read from the bits of one
-input value, so that XLA cannot fold it, and either branch gives the same values);
+conditional as a boundary no fusion crosses; the predicate is read from the bits of an
+input value the level depends on, so that XLA cannot fold it unless that input is a
+constant of the compiled program, e.g. a motion captured by ``jit``, whose
+transcendentals and their users then fold as before; either branch gives the same
+values);
 elsewhere it is an optimisation barrier, which GPU fusion respects. Under ``vmap`` the
 conditional acts on the whole batch (:func:`custom_vmap`: a batched predicate would
 turn it into a ``select``, which fuses); under differentiation it is the identity (its
@@ -106,17 +109,21 @@ def _floating(v) -> bool:
     return jnp.issubdtype(v.aval.dtype, jnp.floating)
 
 
-def _levels(jaxpr) -> list[int]:
-    """For each equation, the number of expensive operations on its longest input path."""
-    depth, levels = {}, []
+def _levels(jaxpr) -> tuple[list[int], list]:
+    """For each equation: the number of expensive operations on its longest input path,
+    and the position of one program input it depends on (``None``: none)."""
+    depth, source = {}, {v: k for k, v in enumerate(jaxpr.invars)}
+    levels, sources = [], []
     for eqn in jaxpr.eqns:
-        level = max((depth.get(v, 0) for v in eqn.invars if not isinstance(v, core.Literal)),
-                    default=0)  # fmt: skip
+        inputs = [v for v in eqn.invars if not isinstance(v, core.Literal)]
+        level = max((depth.get(v, 0) for v in inputs), default=0)
+        found = [source[v] for v in inputs if source.get(v) is not None]
         levels.append(level)
-        out = level + _grouped(eqn)
+        sources.append(min(found, default=None))
         for v in eqn.outvars:
-            depth[v] = out
-    return levels
+            depth[v] = level + _grouped(eqn)
+            source[v] = sources[-1]
+    return levels, sources
 
 
 def _bind(eqn, *args):
@@ -130,8 +137,9 @@ def _batched(level: list, env: dict, anchor) -> None:
     """Evaluate the expensive scalar equations of one level into ``env``, their results
     materialised together."""
     outs = [_bind(e, *(_read(env, v) for v in e.invars))[0] for e in level]
-    if outs:
-        outs = materialise(outs, anchor)
+    if not outs:
+        return
+    outs = materialise(outs, anchor)
     for e, out in zip(level, outs, strict=True):
         env[e.outvars[0]] = out
 
@@ -164,16 +172,21 @@ def schedule(closed, *args):
         return core.jaxpr_as_fun(closed)(*args)
     env = dict(zip(jaxpr.constvars, closed.consts, strict=True))
     env.update(zip(jaxpr.invars, args, strict=True))
-    levels = _levels(jaxpr)
+    levels, sources = _levels(jaxpr)
     for level in sorted(set(levels)):
-        delayed = []
-        for eqn, at in zip(jaxpr.eqns, levels, strict=True):
+        delayed, inputs = [], []
+        for eqn, at, source in zip(jaxpr.eqns, levels, sources, strict=True):
             if at != level:
                 continue
             if _grouped(eqn):
                 delayed.append(eqn)
+                inputs.append(source)
                 continue
             env.update(zip(eqn.outvars, _bind(eqn, *(_read(env, v) for v in eqn.invars)),
                            strict=True))  # fmt: skip
-        _batched(delayed, env, anchor)
+        # the predicate is read from an input these operations depend on: where it is a
+        # constant of the compiled program (a motion captured by ``jit``), XLA folds the
+        # boundary away and with it the transcendentals of constants
+        found = [k for k in inputs if k is not None and np.size(args[k]) > 0]
+        _batched(delayed, env, args[min(found)] if found else anchor)
     return [_read(env, v) for v in jaxpr.outvars]
