@@ -148,8 +148,9 @@ def run_scipy(value, start, free, tol):
     x0 = _flat(start, free)
     bounds = [(0.0, None)] * x0.size
     began = time.perf_counter()
-    # one BLAS thread, as jaxbal's co-design runs L-BFGS-B (jaxbal/_src/lbfgsb.py): SLSQP's
-    # matrices are as small, and OpenBLAS's spinning threads would fight XLA's
+    # one BLAS thread, as jaxbal's co-design runs its host optimiser (jaxbal/_src/lbfgsb.py
+    # wraps SciPy's L-BFGS-B alike above 64 variables): SLSQP's matrices are as small, and
+    # OpenBLAS's spinning threads would fight XLA's
     with one_blas_thread():
         result = scipy_minimize(
             fun, x0, method="SLSQP", bounds=bounds, options={"ftol": tol, "maxiter": 2000}

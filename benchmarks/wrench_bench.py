@@ -170,7 +170,7 @@ def bench_robot(name: str, count: int, loop_count: int, mjx_count: int, chunk: i
     fn_all, devices = sharded(generic, chunk)
     t_devices = best_time(lambda: fn_all(*states)) / (count - count % devices)
     fn_before = chunked(before, chunk)
-    t_before = best_time(lambda: fn_before(*states), 3) / count
+    t_before = best_time(lambda: fn_before(*states)) / count  # as many repeats as ours
     t_mujoco, reactions = mujoco_loop(robot, states, loop_count)
     ours = np.concatenate([np.asarray(x) for x in fn(*(a[:loop_count] for a in states))], 1)
     agreement = float(np.max(np.abs(reactions - ours)) / np.max(np.abs(reactions)))
