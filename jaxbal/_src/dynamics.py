@@ -39,7 +39,9 @@ from jaxbal._src.momentum import (
     _REPLAY,
     body_com_positions,
     body_velocities,
-    checked_output,
+    checked_bodies,
+    checked_finite,
+    checked_parameters,
 )
 from jaxbal._src.robot import Robot
 from jaxbal._src.state_checks import state_check
@@ -102,8 +104,9 @@ def _inverse_dynamics(robot: Robot, q, qd, qdd, gravity, formulation=None) -> Co
     q, qd, qdd, check = state_check(robot, q, qd, qdd)
     if formulation is None:
         formulation = _straight_kane_forces if _REPLAY.value else _kane_forces
-    tau = formulation(robot, q, qd, qdd, gravity)
-    return checked_output("generalised forces", robot, tau, check)
+    tau = check(formulation(robot, q, qd, qdd, gravity))
+    tau = checked_parameters(robot, checked_bodies(robot, tau))
+    return checked_finite("generalised forces", robot, tau)
 
 
 def _kane_forces(robot: Robot, q, qd, qdd, gravity) -> Coordinates:

@@ -49,7 +49,9 @@ from jaxbal._src.along_motion import batched
 from jaxbal._src.linalg import matvec
 from jaxbal._src.momentum import (
     body_com_poses,
-    checked_output,
+    checked_bodies,
+    checked_finite,
+    checked_parameters,
     shaking_wrench,
 )
 from jaxbal._src.motion_samples import (
@@ -248,7 +250,8 @@ def base_inertia(robot: Robot, q: Float[Array, " dof"]) -> Scalar:
     orbital = bodies.mass * jnp.sum(positions[:, :2] ** 2, axis=-1)
     # Checked like the shaking wrench (a NaN length or mass gave a NaN added inertia).
     inertia = guard(jnp.sum(orbital + spin), ~jnp.isfinite(q), "non-finite coordinates q", q)
-    return checked_output("base inertia", robot, inertia)
+    inertia = checked_parameters(robot, checked_bodies(robot, inertia))
+    return checked_finite("base inertia", robot, inertia)
 
 
 def added_inertia(robot: Robot, motion: Motion) -> Scalar:

@@ -40,7 +40,6 @@ from jaxbal._src.straight_line import straight_line
 from jaxbal._src.types import Array, Coordinates, Points, Rotations, Scalar, Vec3
 from jaxbal._src.validation import (
     ROUNDING,
-    Guards,
     _TraceFlag,
     check_shape,
     guard,
@@ -92,23 +91,18 @@ def check_robot(robot: Robot) -> None:
         checked_parameters(robot, checked_bodies(robot, None))
 
 
-def checked_bodies(robot: Robot, value, guards: Guards | None = None):
+def checked_bodies(robot: Robot, value):
     """``value``, guarded by the robot's mass properties as the physics sees them: every
     body mass and inertia diagonal finite and ≥ 0 (derived masses included, e.g. the
     DUAL-V's brass counter-mass ``m_cm − m_tun``), to :data:`ROUNDING` (a derived
     quantity that is zero up to rounding passes). A robot whose class sets
     ``signed_inertias = True`` (an exact equivalent model, e.g. the DUAL-V's split model
-    with residual inertias ``I − m·p·(l − p)``) is checked for finite inertias only.
-    With ``guards`` the checks are added to them (:class:`Guards`) and ``value`` is
-    returned as it is."""
-    own = guards is None
-    guards = Guards() if own else guards
+    with residual inertias ``I − m·p·(l − p)``) is checked for finite inertias only."""
     bodies, diagonal, bad_mass, bad_inertia = _body_faults(robot)
     message = "body masses must be finite and >= 0 [kg]"
-    guards.check(bad_mass, message, bodies.mass, bodies.names)
+    value = guard(value, bad_mass, message, bodies.mass, bodies.names)
     message = "body inertias must be finite with diagonal >= 0 [kg m^2]"
-    guards.check(bad_inertia, message, diagonal, bodies.names)
-    return guards.apply(value) if own else value
+    return guard(value, bad_inertia, message, diagonal, bodies.names)
 
 
 def _parameters(robot: Robot) -> list[tuple[str, Array]]:
@@ -138,7 +132,7 @@ def _parameter_faults(robot: Robot) -> tuple:
     return faults
 
 
-def checked_parameters(robot: Robot, value, guards: Guards | None = None):
+def checked_parameters(robot: Robot, value):
     """``value``, guarded by every floating-point parameter of the robot being finite,
     and the fields in the class's ``nonnegative_parameters`` (lengths, masses,
     inertias) being ``>= 0`` to :data:`ROUNDING` (so that a subnormal ``-1e-309``,
@@ -148,7 +142,7 @@ def checked_parameters(robot: Robot, value, guards: Guards | None = None):
     set with ``eqx.tree_at`` gave a silent NaN wrench, centre of mass or torque, and a
     negative one a mirrored link. Eagerly a ``ValueError`` naming the parameters
     (``PlanarArm.lengths``) and their values; under ``jit`` a runtime error
-    (:func:`jaxbal.set_runtime_checks`). With ``guards`` as :func:`checked_bodies`.
+    (:func:`jaxbal.set_runtime_checks`).
     """
     parameters, signed = _parameters(robot), _signed_parameters(robot)
     if not parameters:
@@ -163,18 +157,15 @@ def checked_parameters(robot: Robot, value, guards: Guards | None = None):
         if bad:
             raise ValueError(f"{negative}: {bad}")
         return value
-    own = guards is None
-    guards = Guards() if own else guards
     for invalid, text in zip(_parameter_faults(robot), (message, negative), strict=False):
-        guards.check(invalid, text, invalid)
-    return guards.apply(value) if own else value
+        value = guard(value, invalid, text, invalid)
+    return value
 
 
-def checked_finite(what: str, robot: Robot, value, guards: Guards | None = None):
+def checked_finite(what: str, robot: Robot, value):
     """``value`` (a pytree of arrays), guarded by being finite: the result of finite
     inputs overflows when a parameter or the state is too large (a 1e300 m link).
-    Eagerly the ``ValueError`` names the largest robot parameter. With ``guards`` as
-    :func:`checked_bodies`."""
+    Eagerly the ``ValueError`` names the largest robot parameter."""
     leaves = jax.tree_util.tree_leaves(value)
     message = f"{what} is not finite (overflow: robot parameters or state too large)"
     if not is_traced(leaves):  # in NumPy: no small JAX operations dispatched eagerly
@@ -187,23 +178,7 @@ def checked_finite(what: str, robot: Robot, value, guards: Guards | None = None)
             message += f"; largest robot parameter: {name} with |x| = {size:.3g}"
         raise ValueError(f"{message}: {np.concatenate([np.ravel(x) for x in arrays])!r}")
     invalid = ~jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in leaves]))
-    own = guards is None
-    guards = Guards() if own else guards
-    guards.check(invalid, message, jnp.concatenate([jnp.ravel(x) for x in leaves]))
-    return guards.apply(value) if own else value
-
-
-def checked_output(what: str, robot: Robot, value, check=None):
-    """``value`` guarded by ``check`` (the state's, from :func:`state_check`),
-    :func:`checked_bodies`, :func:`checked_parameters`, :func:`checked_finite`: eagerly
-    raised in that order, under ``jit`` as one runtime error (:class:`Guards`)."""
-    guards = Guards()
-    if check is not None:
-        value = check(value, guards)
-    value = checked_bodies(robot, value, guards)
-    value = checked_parameters(robot, value, guards)
-    value = checked_finite(what, robot, value, guards)
-    return guards.apply(value)
+    return guard(value, invalid, message, jnp.concatenate([jnp.ravel(x) for x in leaves]))
 
 
 def total_mass(robot: Robot) -> Scalar:
@@ -369,10 +344,11 @@ def _shaking_wrench(robot: Robot, q, qd, qdd, gravity, replay: bool | None = Non
     :func:`replayed`."""
     q, qd, qdd, check = state_check(robot, q, qd, qdd)
     physics = _straight_physics if (_REPLAY.value if replay is None else replay) else _physics
+    force, moment = check(physics(robot, q, qd, qdd, gravity))
     # Both outputs guarded: a check on the force alone was dropped from compiled code
     # that uses only the moment (peak_moment of a NaN-inertia robot was finite).
-    wrench = physics(robot, q, qd, qdd, gravity)
-    return checked_output("shaking wrench", robot, wrench, check)
+    force, moment = checked_parameters(robot, checked_bodies(robot, (force, moment)))
+    return checked_finite("shaking wrench", robot, (force, moment))
 
 
 def _physics(robot: Robot, q, qd, qdd, gravity):

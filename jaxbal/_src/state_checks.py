@@ -16,10 +16,8 @@ MESSAGE = "non-finite state (q, qd, qdd)"
 
 def state_check(robot: Robot, q, qd, qdd):
     """``(q, q̇, q̈, check)``: the state as float arrays, shape-checked ``(dof,)``, and
-    ``check(outputs, guards=None)`` that guards the outputs computed from it with the
-    state's finiteness (message ``non-finite state (q, qd, qdd)``, the state as offending
-    values; with ``guards``, a :class:`~jaxbal._src.validation.Guards`, the check is added
-    to them and the outputs returned as they are).
+    ``check(outputs)`` that guards the outputs computed from it with the state's
+    finiteness (message ``non-finite state (q, qd, qdd)``, the state as offending values).
 
     Under ``jit`` the guard is applied to the outputs rather than threaded through the
     state: a runtime check's value passes a barrier (a ``cond``), and a state taken
@@ -30,17 +28,14 @@ def state_check(robot: Robot, q, qd, qdd):
     for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
         check_shape(name, value, (robot.dof,))
 
-    def check(outputs, guards=None):
+    def check(outputs):
         state = jnp.stack([q, qd, qdd])
-        if guards is None:
-            return guard(outputs, ~jnp.isfinite(state), MESSAGE, state)
-        guards.check(~jnp.isfinite(state), MESSAGE, state)  # validation.Guards
-        return outputs
+        return guard(outputs, ~jnp.isfinite(state), MESSAGE, state)
 
     if not is_traced(q, qd, qdd):  # concrete (even inside a jit): checked in NumPy now
         state = np.stack([np.asarray(q), np.asarray(qd), np.asarray(qdd)])
         guard(None, ~np.isfinite(state), MESSAGE, state)
-        return q, qd, qdd, lambda outputs, guards=None: outputs
+        return q, qd, qdd, lambda outputs: outputs
     return q, qd, qdd, check
 
 

@@ -183,42 +183,6 @@ def guard(value, invalid, message: str, offending, names=None):
     return eqx.error_if(value, jnp.any(invalid), message)
 
 
-class Guards:
-    """Several :func:`guard` checks of one value, raised under ``jit`` as one runtime
-    error: one :func:`equinox.branched_error_if` (one ``cond`` and host callback)
-    instead of one per check. The DUAL-V's peak-force gradient had 12 callbacks; each
-    cost ~25 ms of trace and compile time in a fresh process.
-
-    ``check(...)`` takes :func:`guard`'s arguments: eagerly it raises at once, as a
-    functional check (:func:`checked_jit`) it is a ``checkify`` check at once, and with
-    the runtime checks off it does nothing; under ``jit`` it is kept until
-    ``apply(value)`` returns ``value`` guarded by all kept checks, the message being the
-    first failed check's (in the order of the ``check`` calls, over the whole batch
-    under ``vmap``).
-    """
-
-    def __init__(self):
-        self._kept: list = []
-
-    def check(self, invalid, message: str, offending, names=None) -> None:
-        traced = is_traced(invalid, offending)
-        if not traced or not runtime_checks_enabled() or _FUNCTIONAL.value:
-            guard(None, invalid, message, offending, names)
-            return
-        self._kept.append((jnp.any(invalid), message))
-
-    def apply(self, value):
-        if not self._kept:
-            return value
-        flags = jnp.stack([flag for flag, _ in self._kept])
-        messages = [message for _, message in self._kept]
-        # numbered backwards: under vmap equinox reports the largest index of the batch,
-        # which is then the first check (in order) that failed anywhere
-        last = len(messages) - 1
-        index = last - jnp.argmax(flags)
-        return eqx.branched_error_if(value, jnp.any(flags), index, messages[::-1])
-
-
 #: whether traced guards are functional checkify checks (:func:`checked_jit`).
 _FUNCTIONAL = _TraceFlag(False)
 
