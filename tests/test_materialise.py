@@ -23,7 +23,7 @@ def scalar_program(q0, q1, w):
     """Two levels of transcendentals (a sine of a cosine), shared by three outputs."""
     c0, s01 = jnp.cos(q0), jnp.sin(q0 + q1)
     inner = jnp.sin(c0 * w)
-    return c0 * s01 + inner, s01 - 2.0 * c0 * inner, jnp.exp(0.1 * s01) * w
+    return c0 * s01 + inner, s01 - 2.0 * c0 * inner, jnp.exp(0.1 * s01) * w + c0 * inner
 
 
 ARGS = (jnp.float64(0.3), jnp.float64(-1.1), jnp.float64(2.5))
@@ -42,6 +42,21 @@ def test_schedule_changes_nothing_in_the_values():
     expected = core.jaxpr_as_fun(closed())(*ARGS)
     for a, e in zip(scheduled_fn(*ARGS), expected, strict=True):
         assert float(a) == float(e)
+
+
+def test_a_sine_of_fewer_outputs_is_left_to_xla():
+    """Copies of a sine into two outputs cost less than the boundary (the 2R's torques)."""
+
+    def two(q):
+        s = jnp.sin(q)
+        return s * 2.0, s + 1.0
+
+    def three(q):
+        s = jnp.sin(q)
+        return s * 2.0, s + 1.0, s * q
+
+    assert not scheduled(jax.make_jaxpr(two)(1.0))
+    assert scheduled(jax.make_jaxpr(three)(1.0))
 
 
 def test_vmap_and_nested_vmap_equal_a_loop():

@@ -109,19 +109,46 @@ def _floating(v) -> bool:
     return jnp.issubdtype(v.aval.dtype, jnp.floating)
 
 
-def _levels(jaxpr) -> tuple[list[int], list]:
-    """For each equation: the number of expensive operations on its longest input path,
+#: A transcendental is materialised when at least this many output entries depend on
+#: it (below, its copies cost less than the boundary's write and read: measured on the
+#: 2-core CPU, the 2R's torques, 2 outputs of sin q2 and cos q2, 27 → 17 million
+#: states/s with it; its wrench, 6 outputs, 9.9 → 14.7).
+MIN_OUTPUTS = 3
+
+
+def _shared(jaxpr) -> set:
+    """Indices of the expensive scalar equations that at least :data:`MIN_OUTPUTS`
+    output entries of ``jaxpr`` depend on."""
+    sizes = [int(np.prod(v.aval.shape, dtype=int)) for v in jaxpr.outvars]
+    reach: dict = {}
+    for k, v in enumerate(jaxpr.outvars):
+        if not isinstance(v, core.Literal):
+            reach[v] = reach.get(v, frozenset()) | {k}
+    shared = set()
+    for index in range(len(jaxpr.eqns) - 1, -1, -1):
+        eqn = jaxpr.eqns[index]
+        outputs = frozenset().union(*(reach.get(v, frozenset()) for v in eqn.outvars))
+        if _grouped(eqn) and sum(sizes[k] for k in outputs) >= MIN_OUTPUTS:
+            shared.add(index)
+        for v in eqn.invars:
+            if not isinstance(v, core.Literal):
+                reach[v] = reach.get(v, frozenset()) | outputs
+    return shared
+
+
+def _levels(jaxpr, shared: set) -> tuple[list[int], list]:
+    """For each equation: the number of ``shared`` equations on its longest input path,
     and the position of one program input it depends on (``None``: none)."""
     depth, source = {}, {v: k for k, v in enumerate(jaxpr.invars)}
     levels, sources = [], []
-    for eqn in jaxpr.eqns:
+    for index, eqn in enumerate(jaxpr.eqns):
         inputs = [v for v in eqn.invars if not isinstance(v, core.Literal)]
         level = max((depth.get(v, 0) for v in inputs), default=0)
         found = [source[v] for v in inputs if source.get(v) is not None]
         levels.append(level)
         sources.append(min(found, default=None))
         for v in eqn.outvars:
-            depth[v] = level + _grouped(eqn)
+            depth[v] = level + (index in shared)
             source[v] = sources[-1]
     return levels, sources
 
@@ -150,19 +177,19 @@ def _grouped(eqn) -> bool:
 
 def scheduled(closed) -> bool:
     """Whether :func:`schedule` changes how ``closed`` is evaluated: it has expensive
-    floating-point operations, all on scalars."""
+    floating-point operations, all on scalars, some shared by several outputs."""
     expensive = [e for e in closed.jaxpr.eqns if _grouped(e)]
     scalar = all(v.aval.shape == () for e in expensive for v in e.invars + e.outvars)
-    return bool(expensive) and scalar
+    return bool(expensive) and scalar and bool(_shared(closed.jaxpr))
 
 
 def schedule(closed, *args):
     """Evaluate the scalar program ``closed`` (a closed jaxpr whose equations act on
     scalars) on ``args``, the expensive operations of each level materialised together.
 
-    Level by level: the other equations in their order, then the level's expensive
-    ones, one operation per primitive on their stacked operands (under ``vmap`` one
-    loop over states × operations), whose results pass through :func:`materialise`.
+    Level by level: the other equations in their order, then the level's expensive ones
+    that several outputs share (:data:`MIN_OUTPUTS`), whose results pass together
+    through :func:`materialise`.
     Programs without expensive operations, or with non-scalar ones, are evaluated as
     they are.
     """
@@ -172,13 +199,14 @@ def schedule(closed, *args):
         return core.jaxpr_as_fun(closed)(*args)
     env = dict(zip(jaxpr.constvars, closed.consts, strict=True))
     env.update(zip(jaxpr.invars, args, strict=True))
-    levels, sources = _levels(jaxpr)
+    shared = _shared(jaxpr)
+    levels, sources = _levels(jaxpr, shared)
     for level in sorted(set(levels)):
         delayed, inputs = [], []
-        for eqn, at, source in zip(jaxpr.eqns, levels, sources, strict=True):
+        for index, (eqn, at, source) in enumerate(zip(jaxpr.eqns, levels, sources, strict=True)):
             if at != level:
                 continue
-            if _grouped(eqn):
+            if index in shared:
                 delayed.append(eqn)
                 inputs.append(source)
                 continue
