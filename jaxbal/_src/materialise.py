@@ -9,8 +9,9 @@ does not stop this on the CPU (its pipeline removes the barrier before fusion).
 
 :func:`schedule` evaluates a scalar program (the straight-line code of
 :mod:`jaxbal._src.straight_line`) in levels: a level's transcendentals (those whose
-inputs are ready) pass together through :func:`materialise`, which writes them to
-memory; the operations that use them read them back. On the CPU :func:`materialise` is
+inputs are ready) that several output entries share (:data:`MIN_OUTPUTS`) pass
+together through :func:`materialise`, which writes them to memory; the operations that
+use them read them back. On the CPU :func:`materialise` is
 a ``lax.cond`` whose branches both return their operand unchanged (XLA keeps a
 conditional as a boundary no fusion crosses; the predicate is read from the bits of an
 input value the level depends on, so that XLA cannot fold it unless that input is a
