@@ -154,7 +154,8 @@ def _levels(jaxpr, shared: set) -> tuple[list[int], list]:
     return levels, sources
 
 
-def _bind(eqn, *args):
+def bind(eqn, *args) -> list:
+    """The outputs of ``eqn`` evaluated on ``args`` (as :func:`jax.core.eval_jaxpr` does)."""
     params = eqn.primitive.get_bind_params(eqn.params)
     with eqn.ctx.manager:
         out = eqn.primitive.bind(*args, **params)
@@ -164,7 +165,7 @@ def _bind(eqn, *args):
 def _batched(level: list, env: dict, anchor) -> None:
     """Evaluate the expensive scalar equations of one level into ``env``, their results
     materialised together."""
-    outs = [_bind(e, *(_read(env, v) for v in e.invars))[0] for e in level]
+    outs = [bind(e, *(_read(env, v) for v in e.invars))[0] for e in level]
     if not outs:
         return
     outs = materialise(outs, anchor)
@@ -173,15 +174,16 @@ def _batched(level: list, env: dict, anchor) -> None:
 
 
 def _grouped(eqn) -> bool:
-    return eqn.primitive.name in EXPENSIVE and len(eqn.outvars) == 1 and _floating(eqn.outvars[0])
+    """An expensive floating-point operation on scalars."""
+    scalar = all(v.aval.shape == () for v in eqn.invars + eqn.outvars)
+    single = len(eqn.outvars) == 1 and _floating(eqn.outvars[0])
+    return eqn.primitive.name in EXPENSIVE and single and scalar
 
 
 def scheduled(closed) -> bool:
-    """Whether :func:`schedule` changes how ``closed`` is evaluated: it has expensive
-    floating-point operations, all on scalars, some shared by several outputs."""
-    expensive = [e for e in closed.jaxpr.eqns if _grouped(e)]
-    scalar = all(v.aval.shape == () for e in expensive for v in e.invars + e.outvars)
-    return bool(expensive) and scalar and bool(_shared(closed.jaxpr))
+    """Whether :func:`schedule` changes how ``closed`` is evaluated: some expensive
+    scalar operations are shared by several outputs (:data:`MIN_OUTPUTS`)."""
+    return bool(_shared(closed.jaxpr))
 
 
 def schedule(closed, *args):
@@ -191,16 +193,15 @@ def schedule(closed, *args):
     Level by level: the other equations in their order, then the level's expensive ones
     that several outputs share (:data:`MIN_OUTPUTS`), whose results pass together
     through :func:`materialise`.
-    Programs without expensive operations, or with non-scalar ones, are evaluated as
-    they are.
+    Programs without such operations are evaluated as they are.
     """
     jaxpr = closed.jaxpr
     anchor = next((a for a in args if np.size(a) > 0), None)
-    if not scheduled(closed) or anchor is None:
+    shared = _shared(jaxpr)
+    if not shared or anchor is None:
         return core.jaxpr_as_fun(closed)(*args)
     env = dict(zip(jaxpr.constvars, closed.consts, strict=True))
     env.update(zip(jaxpr.invars, args, strict=True))
-    shared = _shared(jaxpr)
     levels, sources = _levels(jaxpr, shared)
     for level in sorted(set(levels)):
         delayed, inputs = [], []
@@ -211,7 +212,7 @@ def schedule(closed, *args):
                 delayed.append(eqn)
                 inputs.append(source)
                 continue
-            env.update(zip(eqn.outvars, _bind(eqn, *(_read(env, v) for v in eqn.invars)),
+            env.update(zip(eqn.outvars, bind(eqn, *(_read(env, v) for v in eqn.invars)),
                            strict=True))  # fmt: skip
         # the predicate is read from an input these operations depend on: where it is a
         # constant of the compiled program (a motion captured by ``jit``), XLA folds the

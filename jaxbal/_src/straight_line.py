@@ -36,7 +36,7 @@ import jax
 import numpy as np
 from jax.extend import core
 
-from jaxbal._src.materialise import schedule, scheduled
+from jaxbal._src.materialise import bind, schedule, scheduled
 from jaxbal._src.scalar_rules import (
     CALLS,
     CUSTOM,
@@ -52,11 +52,7 @@ from jaxbal._src.scalar_rules import (
 def _fallback(eqn, args):
     """Evaluate ``eqn`` on re-assembled arrays, as :func:`jax.core.eval_jaxpr` does."""
     arrays = [join(a, v.aval.dtype) for a, v in zip(args, eqn.invars, strict=True)]
-    params = eqn.primitive.get_bind_params(eqn.params)
-    with eqn.ctx.manager:
-        outs = eqn.primitive.bind(*arrays, **params)
-    outs = outs if eqn.primitive.multiple_results else [outs]
-    return [split(o) for o in outs]
+    return [split(o) for o in bind(eqn, *arrays)]
 
 
 def _elementwise_only(closed) -> bool:
