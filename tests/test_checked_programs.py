@@ -149,3 +149,26 @@ def test_com_trapezoid_valid_marks_the_samples_its_call_would_refuse():
     assert mask[0] and mask[-1] and not mask[5]
     with pytest.raises(ValueError, match="COM target not reachable"):
         move(arm, theta)
+
+
+def test_checked_jit_reports_the_first_failed_check_whatever_was_traced_before():
+    """checkify reports the failed check of lowest code, numbered as checks are traced:
+    each guard is traced anew (validation._functional_check), so a check of the same
+    message and shapes traced earlier in the process (here "later" alone) does not keep
+    an older code and win over the check that comes first in this program (as a
+    non-finite wrench's message had replaced that of the non-finite state causing it)."""
+
+    def later(x):
+        return validation.guard(x, ~jnp.isfinite(x), "later", x)
+
+    def both(x, y):
+        y = validation.guard(y, ~jnp.isfinite(y), "first", y)
+        return later(x) + jnp.sum(y)
+
+    x, y = jnp.ones(2), jnp.ones(3)
+    assert np.all(np.asarray(jaxbal.checked_jit(later)(x)) == 1.0)
+    checked = jaxbal.checked_jit(both)
+    with pytest.raises(ValueError, match=r"^first: \[ 1\. nan  1\.\]"):
+        checked(x.at[0].set(jnp.nan), y.at[1].set(jnp.nan))
+    with pytest.raises(ValueError, match=r"^later: \[nan  1\.\]"):
+        checked(x.at[0].set(jnp.nan), y)
