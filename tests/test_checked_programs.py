@@ -172,3 +172,29 @@ def test_checked_jit_reports_the_first_failed_check_whatever_was_traced_before()
         checked(x.at[0].set(jnp.nan), y.at[1].set(jnp.nan))
     with pytest.raises(ValueError, match=r"^later: \[nan  1\.\]"):
         checked(x.at[0].set(jnp.nan), y)
+
+
+def test_checked_jit_pauses_the_garbage_collector_only_during_its_call():
+    """The collector is off while checked_jit traces (validation.collection_paused),
+    and as it was after the call, a failed one included."""
+    import gc
+
+    seen = []
+
+    def f(x):
+        seen.append(gc.isenabled())
+        return validation.guard(x, x < 0, "negative", x)
+
+    checked = jaxbal.checked_jit(f)
+    assert gc.isenabled()
+    checked(jnp.ones(2))
+    assert seen == [False] and gc.isenabled()
+    with pytest.raises(ValueError, match="negative"):
+        checked(-jnp.ones(2))
+    assert gc.isenabled()
+    gc.disable()
+    try:
+        checked(jnp.ones(3))
+        assert not gc.isenabled()
+    finally:
+        gc.enable()

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import functools
+import gc
 
 import equinox as eqx
 import jax
@@ -263,6 +264,10 @@ def checked_jit(fn):
             # inside another trace (even with concrete arguments: jit stages every
             # operation) the checks are the enclosing program's
             return fn(*args)
+        with collection_paused():
+            return checked(*args)
+
+    def checked(*args):
         if not runtime_checks_enabled():
             return compiled("unchecked")(*args)
         key = _structure(args)
@@ -293,6 +298,26 @@ def checked_jit(fn):
     call.refused = refused
     call.programs = programs  # mode -> compiled program, those built so far (tests)
     return call
+
+
+@contextlib.contextmanager
+def collection_paused():
+    """Python's cyclic garbage collector paused inside the block (restored on exit,
+    left off if it was off).
+
+    Tracing a program allocates objects by the hundred thousand, and each of Python's
+    full collections then walks every object of the process (JAX's and NumPy's modules
+    included): measured on the 2-core CPU, 0.08-0.18 s of a 0.7-1.1 s first call of a
+    checked gradient (SCARA, DUAL-V, Orthoglide). The garbage of the trace is collected
+    after the block, as it would have been. Used around the calls of
+    :func:`checked_jit`, whose first call traces and compiles."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
 
 
 #: the start of the error ``checkify`` raises for a ``vmap`` of a ``while_loop``
