@@ -45,6 +45,7 @@ from jaxbal._src.validation import (
     guard,
     is_traced,
     runtime_checks,
+    runtime_checks_enabled,
 )
 
 
@@ -98,6 +99,8 @@ def checked_bodies(robot: Robot, value):
     quantity that is zero up to rounding passes). A robot whose class sets
     ``signed_inertias = True`` (an exact equivalent model, e.g. the DUAL-V's split model
     with residual inertias ``I − m·p·(l − p)``) is checked for finite inertias only."""
+    if is_traced(robot) and not runtime_checks_enabled():
+        return value  # the masks would be traced for nothing
     bodies, diagonal, bad_mass, bad_inertia = _body_faults(robot)
     message = "body masses must be finite and >= 0 [kg]"
     value = guard(value, bad_mass, message, bodies.mass, bodies.names)
@@ -157,6 +160,8 @@ def checked_parameters(robot: Robot, value):
         if bad:
             raise ValueError(f"{negative}: {bad}")
         return value
+    if not runtime_checks_enabled():
+        return value
     for invalid, text in zip(_parameter_faults(robot), (message, negative), strict=False):
         value = guard(value, invalid, text, invalid)
     return value
@@ -177,6 +182,8 @@ def checked_finite(what: str, robot: Robot, value):
             name, size = max(parameters, key=lambda item: item[1])
             message += f"; largest robot parameter: {name} with |x| = {size:.3g}"
         raise ValueError(f"{message}: {np.concatenate([np.ravel(x) for x in arrays])!r}")
+    if not runtime_checks_enabled():
+        return value
     invalid = ~jnp.all(jnp.stack([jnp.all(jnp.isfinite(x)) for x in leaves]))
     return guard(value, invalid, message, jnp.concatenate([jnp.ravel(x) for x in leaves]))
 
