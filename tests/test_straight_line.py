@@ -239,3 +239,35 @@ def test_repeated_operations_are_emitted_once():
     actual = jax.jit(straight_line(repeated))(q)
     np.testing.assert_array_equal(actual, expected)
     check_grads(jax.jit(straight_line(repeated)), (q,), order=1, modes=["rev", "fwd"])
+
+
+def test_as_written_reuses_the_jaxpr_traced_for_the_replay():
+    """``straight_line(f).as_written`` (the peak sample's re-evaluation) is ``f`` as
+    written, not replayed: the same jaxpr as tracing ``f``, its values and derivatives
+    bit for bit; after the replay of the same call it evaluates the jaxpr traced then
+    instead of running ``f`` again, and without one it runs ``f``."""
+    calls = []
+
+    def f(x, scale):
+        calls.append(1)
+        return jnp.sin(x) * scale + jnp.cos(x[::-1]) ** 2
+
+    wrapped = straight_line(f)
+    x, scale = jnp.linspace(0.1, 1.0, 5), jnp.asarray(2.0)
+    as_written = jax.make_jaxpr(wrapped.as_written)(x, scale)  # nothing cached: f traced
+    assert len(calls) == 1 and str(as_written) == str(jax.make_jaxpr(f)(x, scale))
+
+    def replay_then_as_written(x, scale):
+        return jax.vmap(wrapped, (0, None))(jnp.stack([x, 2 * x]), scale), wrapped.as_written(
+            x, scale
+        )
+
+    calls.clear()
+    replayed, plain = jax.jit(replay_then_as_written)(x, scale)
+    assert len(calls) == 1  # traced once, for the replay
+    np.testing.assert_array_equal(plain, jax.jit(f)(x, scale))
+    np.testing.assert_allclose(replayed[0], plain, rtol=1e-15)
+    tangent = jax.jit(lambda s: jax.jvp(lambda s_: wrapped.as_written(x, s_), (s,), (1.0,)))
+    expected = jax.jit(lambda s: jax.jvp(lambda s_: f(x, s_), (s,), (1.0,)))(scale)
+    for a, b in zip(tangent(scale), expected, strict=True):
+        np.testing.assert_array_equal(a, b)

@@ -103,7 +103,7 @@ def _inverse_dynamics(robot: Robot, q, qd, qdd, gravity, formulation=None) -> Co
     "before")."""
     q, qd, qdd, check = state_check(robot, q, qd, qdd)
     if formulation is None:
-        formulation = _straight_kane_forces if _REPLAY.value else _kane_forces
+        formulation = _straight_kane_forces if _REPLAY.value else _straight_kane_forces.as_written
     tau = check(formulation(robot, q, qd, qdd, gravity))
     tau = checked_parameters(robot, checked_bodies(robot, tau))
     return checked_finite("generalised forces", robot, tau)

@@ -350,7 +350,8 @@ def _shaking_wrench(robot: Robot, q, qd, qdd, gravity, replay: bool | None = Non
     the straight-line replay (the benchmark's "before"); ``None``: as set by
     :func:`replayed`."""
     q, qd, qdd, check = state_check(robot, q, qd, qdd)
-    physics = _straight_physics if (_REPLAY.value if replay is None else replay) else _physics
+    replay = _REPLAY.value if replay is None else replay
+    physics = _straight_physics if replay else _straight_physics.as_written
     force, moment = check(physics(robot, q, qd, qdd, gravity))
     # Both outputs guarded: a check on the force alone was dropped from compiled code
     # that uses only the moment (peak_moment of a NaN-inertia robot was finite).

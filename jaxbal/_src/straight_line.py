@@ -137,9 +137,9 @@ def _leaf_key(leaf):
 
 
 def _generate(fn, leaves, treedef, traced):
-    """``(jitted straight-line program, output treedef)`` of ``fn`` for these argument
-    leaves, or ``None`` when ``fn`` is larger than :data:`MAX_SCALARS` or the code
-    generated larger than :data:`MAX_GENERATED`."""
+    """``(jitted straight-line program, output treedef, fn's own jaxpr)`` of ``fn`` for
+    these argument leaves; the program is ``None`` when ``fn`` is larger than
+    :data:`MAX_SCALARS` or the code generated larger than :data:`MAX_GENERATED`."""
     specs = [
         jax.ShapeDtypeStruct(leaf.aval.shape, leaf.aval.dtype)
         for leaf, t in zip(leaves, traced, strict=True)
@@ -152,9 +152,9 @@ def _generate(fn, leaves, treedef, traced):
         return fn(*jax.tree_util.tree_unflatten(treedef, full))
 
     closed, shapes = jax.make_jaxpr(inner, return_shape=True)(*specs)
-    if scalar_count(closed.jaxpr) > MAX_SCALARS:
-        return None
     flat_shapes, out_tree = jax.tree_util.tree_flatten(shapes)
+    if scalar_count(closed.jaxpr) > MAX_SCALARS:
+        return None, out_tree, closed
 
     def program(*values):
         with shared_subexpressions():
@@ -165,11 +165,11 @@ def _generate(fn, leaves, treedef, traced):
     # other jit/vmap/grad contexts) reuse it and JAX's caches of its transformations.
     generated = jax.make_jaxpr(program)(*specs)
     if len(generated.jaxpr.eqns) > MAX_GENERATED:
-        return None
+        return None, out_tree, closed
     if scheduled(generated):
         # the transcendentals computed once per state and read back (materialise.py)
         generated = jax.make_jaxpr(functools.partial(schedule, generated))(*specs)
-    return jax.jit(core.jaxpr_as_fun(generated)), out_tree
+    return jax.jit(core.jaxpr_as_fun(generated)), out_tree, closed
 
 
 def straight_line(fn, context=lambda: ()):
@@ -184,29 +184,47 @@ def straight_line(fn, context=lambda: ()):
     """
     cache: OrderedDict = OrderedDict()
 
-    @functools.wraps(fn)
-    def wrapped(*args):
+    def entry(args, generate: bool):
+        """``(cache entry or None, traced leaves)`` of a call with ``args``."""
         leaves, treedef = jax.tree_util.tree_flatten(args)
         traced = [isinstance(leaf, jax.core.Tracer) for leaf in leaves]
-        if not any(traced):
-            return fn(*args)
+        dynamic = [leaf for leaf, t in zip(leaves, traced, strict=True) if t]
+        if not dynamic:
+            return None, dynamic
         key = (treedef, tuple(_leaf_key(leaf) for leaf in leaves), context())
         try:
-            generated = cache.get(key)
+            found = cache.get(key)
         except TypeError:  # an unhashable static field: generate without caching
-            key, generated = None, None
-        if generated is None:
-            generated = _generate(fn, leaves, treedef, traced) or (None, None)
+            key, found = None, None
+        if found is not None:
+            cache.move_to_end(key)
+        elif generate:
+            found = _generate(fn, leaves, treedef, traced)
             if key is not None:
-                cache[key] = generated
+                cache[key] = found
                 if len(cache) > CACHE_SIZE:
                     cache.popitem(last=False)
-        else:
-            cache.move_to_end(key)
-        program, out_tree = generated
-        if program is None:
+        return found, dynamic
+
+    @functools.wraps(fn)
+    def wrapped(*args):
+        found, dynamic = entry(args, generate=True)
+        if found is None or found[0] is None:
             return fn(*args)
-        dynamic = [leaf for leaf, t in zip(leaves, traced, strict=True) if t]
+        program, out_tree, _ = found
         return jax.tree_util.tree_unflatten(out_tree, program(*dynamic))
 
+    def as_written(*args):
+        """``fn(*args)`` as written (not replayed): the jaxpr traced for the replay of
+        the same call, when there is one, is evaluated instead of tracing ``fn`` again
+        (the same operations, in a fraction of the trace time: e.g. the peak metrics'
+        re-evaluation of their peak sample after the replay of every sample)."""
+        found, dynamic = entry(args, generate=False)
+        if found is None:
+            return fn(*args)
+        _, out_tree, closed = found
+        outs = core.jaxpr_as_fun(closed)(*dynamic)
+        return jax.tree_util.tree_unflatten(out_tree, outs)
+
+    wrapped.as_written = as_written
     return wrapped
