@@ -15,7 +15,9 @@ in a force and in its derivative: ~40 % fewer operations to trace, transform und
 
 The generated code's transcendentals are then computed once per state and read back
 by every output (:mod:`jaxbal._src.materialise`: XLA's CPU fusion would copy them into
-each output's loop).
+each output's loop). Under ``vmap`` the program is batched by binding its scalar
+operations again on the batched values (:mod:`jaxbal._src.batched_call`), not by JAX's
+batching pass; equations no output needs (a ``jvp``'s primal values) are not generated.
 
 Primitives the interpreter does not know (``cond``, callbacks, ``gather``, loops …) are
 evaluated on re-assembled arrays, exactly as :func:`jax.core.eval_jaxpr` would, so any
@@ -36,6 +38,7 @@ import jax
 import numpy as np
 from jax.extend import core
 
+from jaxbal._src.batched_call import batchable, live
 from jaxbal._src.materialise import bind, schedule, scheduled
 from jaxbal._src.scalar_rules import (
     CALLS,
@@ -63,8 +66,14 @@ def _elementwise_only(closed) -> bool:
     return all(e.primitive.name in ELEMENTWISE for e in closed.jaxpr.eqns)
 
 
-def evaluate(jaxpr, consts, args) -> list[np.ndarray]:
-    """Evaluate ``jaxpr`` on object arrays of scalars; returns object arrays."""
+def evaluate(jaxpr, consts, args, wanted=None) -> list[np.ndarray]:
+    """Evaluate ``jaxpr`` on object arrays of scalars; returns object arrays (``None``
+    for the outputs not ``wanted``). Equations no wanted output depends on are skipped:
+    a ``jvp``'s primal values, for one (the momentum of the wrench's ``dp/dt``), were a
+    third of the DUAL-V's and Orthoglide's generated operations, traced by every
+    transformation of the program before JAX or XLA removed them."""
+    wanted = [True] * len(jaxpr.outvars) if wanted is None else wanted
+    keep, used = live(jaxpr, wanted)
     env = {}
 
     def read(v):
@@ -76,7 +85,9 @@ def evaluate(jaxpr, consts, args) -> list[np.ndarray]:
         env[var] = split(value)
     for var, value in zip(jaxpr.invars, args, strict=True):
         env[var] = value
-    for eqn in jaxpr.eqns:
+    for eqn, kept in zip(jaxpr.eqns, keep, strict=True):
+        if not kept:
+            continue
         args_ = [read(v) for v in eqn.invars]
         name = eqn.primitive.name
         outs = None
@@ -84,7 +95,7 @@ def evaluate(jaxpr, consts, args) -> list[np.ndarray]:
             outs = [elementwise(eqn, args_)]
         elif name in CALLS or (name in CUSTOM and _elementwise_only(eqn.params[CUSTOM[name]])):
             closed = eqn.params[CALLS.get(name) or CUSTOM[name]]
-            outs = evaluate(closed.jaxpr, closed.consts, args_)
+            outs = evaluate(closed.jaxpr, closed.consts, args_, [v in used for v in eqn.outvars])
         else:
             result = structural(eqn, args_)
             several = eqn.primitive.multiple_results
@@ -94,7 +105,7 @@ def evaluate(jaxpr, consts, args) -> list[np.ndarray]:
         for var, value in zip(eqn.outvars, outs, strict=True):
             if not isinstance(var, core.DropVar):
                 env[var] = value
-    return [read(v) for v in jaxpr.outvars]
+    return [read(v) if w else None for v, w in zip(jaxpr.outvars, wanted, strict=True)]
 
 
 #: Above this many scalar results (summed over the jaxpr's equations) the replay would
@@ -169,7 +180,10 @@ def _generate(fn, leaves, treedef, traced):
     if scheduled(generated):
         # the transcendentals computed once per state and read back (materialise.py)
         generated = jax.make_jaxpr(functools.partial(schedule, generated))(*specs)
-    return jax.jit(core.jaxpr_as_fun(generated)), out_tree, closed
+    program = jax.jit(core.jaxpr_as_fun(generated))
+    if not generated.effects:  # a check inside stays visible to checkify, batched by vmap
+        program = batchable(program, generated)
+    return program, out_tree, closed
 
 
 def straight_line(fn, context=lambda: ()):
