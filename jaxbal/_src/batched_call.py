@@ -68,28 +68,38 @@ def live(jaxpr, wanted=None) -> tuple[list[bool], set]:
     return keep, used
 
 
+def _batched_vars(jaxpr, batched: tuple, keep: list[bool]) -> dict:
+    """Whether each variable of ``jaxpr`` has the leading batch axis (``batched[k]``:
+    input ``k`` has it): an equation's outputs have it iff one of its inputs has."""
+    flag = {v: False for v in jaxpr.constvars}
+    flag.update(zip(jaxpr.invars, batched, strict=True))
+    for eqn, kept in zip(jaxpr.eqns, keep, strict=True):
+        if kept:
+            moving = any(flag[v] for v in eqn.invars if not isinstance(v, core.Literal))
+            flag.update((v, moving) for v in eqn.outvars)
+    return flag
+
+
 def _emit(closed, batched: tuple, size: int):
-    """A function of the program's inputs (``batched[k]``: input ``k`` has a leading
-    axis of length ``size``) computing its outputs batched; returns ``(outputs, flags)``
-    with ``flags[k]`` whether output ``k`` has the leading axis."""
+    """``(run, out_flags)``: ``run`` computes the program's outputs batched from its
+    inputs (``batched[k]``: input ``k`` has a leading axis of length ``size``);
+    ``out_flags[k]``: whether output ``k`` has that axis."""
     jaxpr = closed.jaxpr
     keep, _ = live(jaxpr)
+    flag = _batched_vars(jaxpr, batched, keep)
 
     def run(*args):
-        env, flag = {}, {}
-        for v, c in zip(jaxpr.constvars, closed.consts, strict=True):
-            env[v], flag[v] = c, False
-        for v, a, b in zip(jaxpr.invars, args, batched, strict=True):
-            env[v], flag[v] = a, b
+        env = dict(zip(jaxpr.constvars, closed.consts, strict=True))
+        env.update(zip(jaxpr.invars, args, strict=True))
 
         def read(v):
-            return (v.val, False) if isinstance(v, core.Literal) else (env[v], flag[v])
+            return v.val if isinstance(v, core.Literal) else env[v]
 
         for eqn, kept in zip(jaxpr.eqns, keep, strict=True):
             if not kept:  # no output depends on it (a pjit's would be removed by JAX)
                 continue
-            pairs = [read(v) for v in eqn.invars]
-            values, flags = [x for x, _ in pairs], [b for _, b in pairs]
+            values = [read(v) for v in eqn.invars]
+            flags = [not isinstance(v, core.Literal) and flag[v] for v in eqn.invars]
             if not any(flags):
                 outs = bind(eqn, *values)
             elif all(v.aval.shape == () for v in eqn.invars + eqn.outvars) and not list(
@@ -105,11 +115,11 @@ def _emit(closed, batched: tuple, size: int):
             else:
                 axes = [0 if b else None for b in flags]
                 outs = jax.vmap(functools.partial(bind, eqn), in_axes=axes)(*values)
-            for v, out in zip(eqn.outvars, outs, strict=True):
-                env[v], flag[v] = out, any(flags)
+            env.update(zip(eqn.outvars, outs, strict=True))
         return [read(v) for v in jaxpr.outvars]
 
-    return run
+    out_flags = [not isinstance(v, core.Literal) and flag[v] for v in jaxpr.outvars]
+    return run, out_flags
 
 
 def _front(x):
@@ -136,15 +146,8 @@ def batchable(program, closed):
     def batched_program(in_batched: tuple, size: int):
         key = (in_batched, size)
         if key not in cache:
-            emitted = _emit(closed, in_batched, size)
-            flags = []
-
-            def values(*args):
-                pairs = emitted(*args)
-                flags[:] = [b for _, b in pairs]
-                return [x for x, _ in pairs]
-
-            compiled = jax.jit(values)
+            emitted, flags = _emit(closed, in_batched, size)
+            compiled = jax.jit(emitted)
             # opaque to checkify and partial evaluation; a nested vmap batches it
             opaque = custom_vmap(lambda *args: compiled(*args))
 
@@ -154,7 +157,7 @@ def batchable(program, closed):
                 outs = jax.vmap(compiled, in_axes=axes, out_axes=0, axis_size=axis_size)(*args)
                 return outs, [True] * len(outs)
 
-            cache[key] = (opaque, compiled, flags)
+            cache[key] = (opaque, flags)
             if len(cache) > CACHE_SIZE:
                 cache.pop(next(iter(cache)))
         return cache[key]
@@ -165,9 +168,8 @@ def batchable(program, closed):
 
     @run.def_vmap
     def _batched(axis_size, in_batched, *args):
-        opaque, _, flags = batched_program(tuple(in_batched), axis_size)
-        outs = opaque(*args)  # traces the batched program (once), which sets the flags
-        return outs, list(flags)
+        opaque, flags = batched_program(tuple(in_batched), axis_size)
+        return opaque(*args), list(flags)
 
     @jax.custom_jvp
     def call(*args):
