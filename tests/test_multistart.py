@@ -48,8 +48,12 @@ def several(problem):
 def test_given_start_is_the_plain_run_and_best_is_the_lowest_feasible(problem, several):
     arm, move = problem
     plain = joint_codesign(arm, move, THETA, "rms_force", **OPTIONS)
-    # same default scales: the given start's loss equals the plain run's
-    np.testing.assert_allclose(several.values[0], float(plain.value), rtol=1e-12)
+    # same default scales: the given start's loss equals the plain run's. The scales are
+    # the same means computed by two programs (the plain run's, and payload_metrics's
+    # averaged in NumPy), equal to rounding, which 40 quasi-Newton steps amplified to
+    # 8e-12 (rtol 1e-12 failed with this file run alone, passed in the full suite); a
+    # scale 1e-6 off would change the loss by ~2e-6.
+    np.testing.assert_allclose(several.values[0], float(plain.value), rtol=1e-9)
     assert several.kinds == ("given", "random", "random")
     assert several.feasible.any()
     assert float(several.best.value) == np.min(several.values[several.feasible])

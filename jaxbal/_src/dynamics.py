@@ -35,13 +35,12 @@ import jax
 import jax.numpy as jnp
 
 from jaxbal._src.linalg import cross, matvec, rmatvec, world_inertia_times
+from jaxbal._src.merged_guards import merged_guards
 from jaxbal._src.momentum import (
     _REPLAY,
     body_com_positions,
     body_velocities,
-    checked_bodies,
-    checked_finite,
-    checked_parameters,
+    checked_physics,
 )
 from jaxbal._src.robot import Robot
 from jaxbal._src.state_checks import state_check
@@ -104,9 +103,8 @@ def _inverse_dynamics(robot: Robot, q, qd, qdd, gravity, formulation=None) -> Co
     q, qd, qdd, check = state_check(robot, q, qd, qdd)
     if formulation is None:
         formulation = _straight_kane_forces if _REPLAY.value else _straight_kane_forces.as_written
-    tau = check(formulation(robot, q, qd, qdd, gravity))
-    tau = checked_parameters(robot, checked_bodies(robot, tau))
-    return checked_finite("generalised forces", robot, tau)
+    tau = formulation(robot, q, qd, qdd, gravity)
+    return merged_guards(lambda: checked_physics("generalised forces", robot, check(tau)))
 
 
 def _kane_forces(robot: Robot, q, qd, qdd, gravity) -> Coordinates:

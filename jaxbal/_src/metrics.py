@@ -47,11 +47,10 @@ import numpy as np
 from jaxbal._src.actuation import actuator_torques
 from jaxbal._src.along_motion import batched
 from jaxbal._src.linalg import matvec
+from jaxbal._src.merged_guards import merged_guards
 from jaxbal._src.momentum import (
     body_com_poses,
-    checked_bodies,
-    checked_finite,
-    checked_parameters,
+    checked_physics,
     shaking_wrench,
 )
 from jaxbal._src.motion_samples import (
@@ -249,9 +248,13 @@ def base_inertia(robot: Robot, q: Float[Array, " dof"]) -> Scalar:
     spin = jnp.sum(row_z * matvec(bodies.inertia, row_z), axis=-1)
     orbital = bodies.mass * jnp.sum(positions[:, :2] ** 2, axis=-1)
     # Checked like the shaking wrench (a NaN length or mass gave a NaN added inertia).
-    inertia = guard(jnp.sum(orbital + spin), ~jnp.isfinite(q), "non-finite coordinates q", q)
-    inertia = checked_parameters(robot, checked_bodies(robot, inertia))
-    return checked_finite("base inertia", robot, inertia)
+    inertia = jnp.sum(orbital + spin)
+
+    def checks():
+        checked = guard(inertia, ~jnp.isfinite(q), "non-finite coordinates q", q)
+        return checked_physics("base inertia", robot, checked)
+
+    return merged_guards(checks)
 
 
 def added_inertia(robot: Robot, motion: Motion) -> Scalar:

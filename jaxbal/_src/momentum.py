@@ -33,6 +33,7 @@ from jaxbal._src.linalg import (
     weighted_sum,
     world_inertia_times,
 )
+from jaxbal._src.merged_guards import merged_guards
 from jaxbal._src.planar import PlanarRobot, planar_inertial_wrench
 from jaxbal._src.robot import Robot
 from jaxbal._src.state_checks import state_check
@@ -188,6 +189,13 @@ def checked_finite(what: str, robot: Robot, value):
     return guard(value, invalid, message, jnp.concatenate([jnp.ravel(x) for x in leaves]))
 
 
+def checked_physics(what: str, robot: Robot, value):
+    """``value`` guarded by :func:`checked_bodies`, :func:`checked_parameters` and
+    :func:`checked_finite` (the checks of every physics output; under a trace, call it
+    in :func:`~jaxbal._src.merged_guards.merged_guards`)."""
+    return checked_finite(what, robot, checked_parameters(robot, checked_bodies(robot, value)))
+
+
 def total_mass(robot: Robot) -> Scalar:
     """Total mass of all moving bodies (payload, counter-masses included) [kg]."""
     return jnp.sum(robot.mass_properties().mass)
@@ -240,9 +248,12 @@ def _center_of_mass(robot: Robot, q: Coordinates) -> Vec3:
     positions = body_com_positions(robot, q)
     mass = jnp.sum(bodies.mass)
     com = weighted_sum(bodies.mass, positions) / jnp.maximum(mass, 1e-300)
-    com = guard(com, ~jnp.isfinite(q), "non-finite coordinates q", q)
-    com = checked_parameters(robot, checked_bodies(robot, com))
-    return checked_finite("centre of mass", robot, com)
+
+    def checks():
+        checked = guard(com, ~jnp.isfinite(q), "non-finite coordinates q", q)
+        return checked_physics("centre of mass", robot, checked)
+
+    return merged_guards(checks)
 
 
 def momentum(robot: Robot, q: Coordinates, qd: Coordinates) -> tuple[Vec3, Vec3]:
@@ -352,11 +363,10 @@ def _shaking_wrench(robot: Robot, q, qd, qdd, gravity, replay: bool | None = Non
     q, qd, qdd, check = state_check(robot, q, qd, qdd)
     replay = _REPLAY.value if replay is None else replay
     physics = _straight_physics if replay else _straight_physics.as_written
-    force, moment = check(physics(robot, q, qd, qdd, gravity))
+    wrench = physics(robot, q, qd, qdd, gravity)
     # Both outputs guarded: a check on the force alone was dropped from compiled code
     # that uses only the moment (peak_moment of a NaN-inertia robot was finite).
-    force, moment = checked_parameters(robot, checked_bodies(robot, (force, moment)))
-    return checked_finite("shaking wrench", robot, (force, moment))
+    return merged_guards(lambda: checked_physics("shaking wrench", robot, check(wrench)))
 
 
 def _physics(robot: Robot, q, qd, qdd, gravity):

@@ -56,6 +56,7 @@ import numpy as np
 
 from jaxbal._src.along_motion import batched
 from jaxbal._src.linalg import cos_sin, matmul_transposed, vee
+from jaxbal._src.merged_guards import merged_guards
 from jaxbal._src.metrics import Motion
 from jaxbal._src.momentum import (
     checked_bodies,
@@ -221,9 +222,13 @@ def wrench_regressor(robot: Robot, q: Coordinates, qd: Coordinates, qdd: Coordin
             same value checks at run time (:func:`jaxbal.set_runtime_checks`).
     """
     q, qd, qdd, check = state_check(robot, q, qd, qdd)
-    force, moment = check(_columns(frame_kinematics(robot, q, qd, qdd)))
-    columns = checked_parameters(robot, (force.reshape(3, -1), moment.reshape(3, -1)))
-    return checked_finite("wrench regressor", robot, columns)
+    force, moment = _columns(frame_kinematics(robot, q, qd, qdd))
+    columns = (force.reshape(3, -1), moment.reshape(3, -1))
+
+    def checks():
+        return checked_finite("wrench regressor", robot, checked_parameters(robot, check(columns)))
+
+    return merged_guards(checks)
 
 
 class LinearWrench(NamedTuple):

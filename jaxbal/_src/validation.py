@@ -24,6 +24,8 @@ import jax.numpy as jnp
 import numpy as np
 from jax.experimental import checkify
 
+from jaxbal._src.merged_guards import OPEN
+
 
 def is_traced(*values) -> bool:
     """True when any leaf of ``values`` is a JAX tracer (inside jit/vmap/grad)."""
@@ -179,6 +181,9 @@ def guard(value, invalid, message: str, offending, names=None):
     if _FUNCTIONAL.value:
         # braces of the message escaped: checkify formats it with the offending values
         _functional_check(invalid, offending, text=message.replace("{", "{{").replace("}", "}}"))
+        return value
+    if OPEN:  # inside merged_guards: one runtime check for all (merged_guards module doc)
+        OPEN[-1].append((jnp.any(invalid), message))
         return value
     return eqx.error_if(value, jnp.any(invalid), message)
 

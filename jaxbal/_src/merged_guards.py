@@ -1,0 +1,54 @@
+"""Several runtime checks of one value traced as one :func:`equinox.error_if`.
+
+A physics function guards its output with up to six checks (a finite state, body
+masses and inertias, finite and non-negative parameters, a finite result:
+:mod:`jaxbal._src.momentum`), each a :func:`~jaxbal._src.validation.guard`. Under ``jit``
+each was an :func:`equinox.error_if`, which walks the Python stack to describe where
+the check was made, and JAX's test of each frame (``traceback_util.include_frame``,
+against ~40 excluded paths, with file-system calls) cost 20–40 ms per check: ~0.14–0.24
+s of the ~0.8 s trace of a peak-force gradient (measured on the 2-core CPU, Orthoglide,
+DUAL-V, 2R). :func:`merged_guards` traces the checks of one value as one
+:func:`equinox.branched_error_if`, with the same messages and the same data dependency
+(every check guarded that value before too).
+
+Which message is raised when several checks fail: the first check in program order
+that fails for any sample of a batch (as the chained checks did, the first of the
+chain firing first), e.g. a non-finite state rather than the non-finite wrench it
+causes. Eager checks (concrete values) raise at once as before, and the functional
+checks of :func:`~jaxbal.checked_jit` stay one ``checkify`` check each.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TypeVar
+
+import equinox as eqx
+import jax.numpy as jnp
+
+T = TypeVar("T")
+
+#: the checks collected by the open :func:`merged_guards` calls (innermost last), as
+#: ``(failed, message)`` pairs with ``failed`` a traced scalar bool
+OPEN: list[list] = []
+
+
+def merged_guards(checks: Callable[[], T]) -> T:
+    """``checks()``, whose traced guards (called directly by it, at the trace level of its
+    result) are applied to its result as one runtime check (module doc)."""
+    collected: list = []
+    OPEN.append(collected)
+    try:
+        value = checks()
+    finally:
+        OPEN.pop()
+    if not collected:
+        return value
+    failed = jnp.stack([f for f, _ in collected])
+    if len(collected) == 1:
+        return eqx.error_if(value, failed[0], collected[0][1])
+    # equinox keeps the largest index over a batch: the first check gets the largest
+    priority = jnp.arange(len(collected) - 1, -1, -1)
+    index = jnp.max(jnp.where(failed, priority, 0))
+    messages = [message for _, message in reversed(collected)]
+    return eqx.branched_error_if(value, jnp.any(failed), index, messages)
