@@ -34,12 +34,12 @@ def test_each_physics_output_has_one_runtime_check():
 
 
 def _three_checks(x):
-    def checks():
+    def checks(x):
         y = guard(x, x[0] < 0, "first", x)
         y = guard(y, x[1] < 0, "second", x)
         return guard(y, x[2] < 0, "third", x)
 
-    return merged_guards(checks)
+    return merged_guards(checks, x)
 
 
 @pytest.mark.parametrize(
@@ -77,3 +77,21 @@ def test_a_bad_parameter_is_named_before_the_non_finite_wrench_it_causes():
     with pytest.raises(Exception, match="body masses"):
         jax.block_until_ready(wrench(negative, state))
     assert np.all(np.isfinite(wrench(robot, state)[0]))
+
+
+def _multiplies(robot, state, checks: bool) -> int:
+    with jaxbal.runtime_checks(checks):
+        wrench = jax.jit(jax.vmap(jaxbal.shaking_wrench, in_axes=(None, 0, 0, 0)))
+        text = wrench.lower(robot, state, state, state).compile().as_text()
+    return text.count(" multiply(")
+
+
+def test_the_checked_wrench_is_computed_once():
+    """The merged check reads the wrench (is it finite?) and passes it on: without the
+    value written to memory first, XLA:CPU compiled the Orthoglide's whole wrench into
+    both (2.1x the multiplies of the unchecked program, 3.4x slower)."""
+    robot = jaxbal.robots.orthoglide()
+    state = jnp.tile(jnp.array([0.01, 0.02, 0.03, 0.1, 0.2, 0.3]), (8, 1))
+    checked, unchecked = _multiplies(robot, state, True), _multiplies(robot, state, False)
+    assert unchecked > 50
+    assert checked <= 1.3 * unchecked, (checked, unchecked)

@@ -104,7 +104,7 @@ def _inverse_dynamics(robot: Robot, q, qd, qdd, gravity, formulation=None) -> Co
     if formulation is None:
         formulation = _straight_kane_forces if _REPLAY.value else _straight_kane_forces.as_written
     tau = formulation(robot, q, qd, qdd, gravity)
-    return merged_guards(lambda: checked_physics("generalised forces", robot, check(tau)))
+    return merged_guards(lambda t: checked_physics("generalised forces", robot, check(t)), tau)
 
 
 def _kane_forces(robot: Robot, q, qd, qdd, gravity) -> Coordinates:

@@ -250,11 +250,11 @@ def base_inertia(robot: Robot, q: Float[Array, " dof"]) -> Scalar:
     # Checked like the shaking wrench (a NaN length or mass gave a NaN added inertia).
     inertia = jnp.sum(orbital + spin)
 
-    def checks():
+    def checks(inertia):
         checked = guard(inertia, ~jnp.isfinite(q), "non-finite coordinates q", q)
         return checked_physics("base inertia", robot, checked)
 
-    return merged_guards(checks)
+    return merged_guards(checks, inertia)
 
 
 def added_inertia(robot: Robot, motion: Motion) -> Scalar:

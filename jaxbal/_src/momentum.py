@@ -249,11 +249,11 @@ def _center_of_mass(robot: Robot, q: Coordinates) -> Vec3:
     mass = jnp.sum(bodies.mass)
     com = weighted_sum(bodies.mass, positions) / jnp.maximum(mass, 1e-300)
 
-    def checks():
+    def checks(com):
         checked = guard(com, ~jnp.isfinite(q), "non-finite coordinates q", q)
         return checked_physics("centre of mass", robot, checked)
 
-    return merged_guards(checks)
+    return merged_guards(checks, com)
 
 
 def momentum(robot: Robot, q: Coordinates, qd: Coordinates) -> tuple[Vec3, Vec3]:
@@ -366,7 +366,7 @@ def _shaking_wrench(robot: Robot, q, qd, qdd, gravity, replay: bool | None = Non
     wrench = physics(robot, q, qd, qdd, gravity)
     # Both outputs guarded: a check on the force alone was dropped from compiled code
     # that uses only the moment (peak_moment of a NaN-inertia robot was finite).
-    return merged_guards(lambda: checked_physics("shaking wrench", robot, check(wrench)))
+    return merged_guards(lambda w: checked_physics("shaking wrench", robot, check(w)), wrench)
 
 
 def _physics(robot: Robot, q, qd, qdd, gravity):

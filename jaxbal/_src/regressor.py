@@ -225,10 +225,10 @@ def wrench_regressor(robot: Robot, q: Coordinates, qd: Coordinates, qdd: Coordin
     force, moment = _columns(frame_kinematics(robot, q, qd, qdd))
     columns = (force.reshape(3, -1), moment.reshape(3, -1))
 
-    def checks():
+    def checks(columns):
         return checked_finite("wrench regressor", robot, checked_parameters(robot, check(columns)))
 
-    return merged_guards(checks)
+    return merged_guards(checks, columns)
 
 
 class LinearWrench(NamedTuple):
