@@ -7,10 +7,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from jax.experimental import checkify
 
 import jaxbal
 from jaxbal._src.merged_guards import merged_guards
-from jaxbal._src.validation import guard
+from jaxbal._src.validation import _FUNCTIONAL, guard
 from jaxbal.design import base_inertia
 
 
@@ -79,19 +80,24 @@ def test_a_bad_parameter_is_named_before_the_non_finite_wrench_it_causes():
     assert np.all(np.isfinite(wrench(robot, state)[0]))
 
 
-def _multiplies(robot, state, checks: bool) -> int:
-    with jaxbal.runtime_checks(checks):
-        wrench = jax.jit(jax.vmap(jaxbal.shaking_wrench, in_axes=(None, 0, 0, 0)))
-        text = wrench.lower(robot, state, state, state).compile().as_text()
+def _multiplies(robot, state, checks: bool, functional: bool = False) -> int:
+    wrench = jax.vmap(jaxbal.shaking_wrench, in_axes=(None, 0, 0, 0))
+    with jaxbal.runtime_checks(checks), _FUNCTIONAL(functional):
+        if functional:  # the program of jaxbal.checked_jit
+            wrench = checkify.checkify(wrench, errors=checkify.user_checks)
+        text = jax.jit(wrench).lower(robot, state, state, state).compile().as_text()
     return text.count(" multiply(")
 
 
 def test_the_checked_wrench_is_computed_once():
-    """The merged check reads the wrench (is it finite?) and passes it on: without the
+    """A check reads the wrench (is it finite?) and the program returns it: without the
     value written to memory first, XLA:CPU compiled the Orthoglide's whole wrench into
-    both (2.1x the multiplies of the unchecked program, 3.4x slower)."""
+    both (2.1x the multiplies of the unchecked program, 3.4x slower), with the checks
+    as callbacks (merged) and as checked_jit's functional checks alike."""
     robot = jaxbal.robots.orthoglide()
     state = jnp.tile(jnp.array([0.01, 0.02, 0.03, 0.1, 0.2, 0.3]), (8, 1))
-    checked, unchecked = _multiplies(robot, state, True), _multiplies(robot, state, False)
+    unchecked = _multiplies(robot, state, False)
     assert unchecked > 50
-    assert checked <= 1.3 * unchecked, (checked, unchecked)
+    for functional in (False, True):
+        checked = _multiplies(robot, state, True, functional)
+        assert checked <= 1.3 * unchecked, (functional, checked, unchecked)

@@ -41,14 +41,16 @@ def merged_guards(checks: Callable[[T], T], value: T) -> T:
     """``checks(value)``, whose traced guards (called directly by it, at the trace level
     of ``value``) are applied to its result as one runtime check (module doc).
 
-    Where that check is traced, ``value`` is first written to memory
-    (:func:`~jaxbal._src.materialise.materialise`): the check's predicate reads the
-    value (is it finite?) and the result passes it on, and XLA's CPU backend compiled the
-    whole computation of ``value`` into both (the Orthoglide's vmapped wrench ran 3.4×
-    slower); the chained checks had been such boundaries themselves."""
-    from jaxbal._src.validation import _FUNCTIONAL, is_traced, runtime_checks_enabled
+    Where checks are traced, ``value`` is first written to memory
+    (:func:`~jaxbal._src.materialise.materialise`): a check reads the value (is it
+    finite?) and the result passes it on, and XLA's CPU backend compiled the whole
+    computation of ``value`` into both (the Orthoglide's vmapped wrench ran 3.4× slower
+    with the merged check; the functional checks of :func:`~jaxbal.checked_jit`, which
+    pass nothing on, had the same copy); the chained checks had been such boundaries
+    themselves."""
+    from jaxbal._src.validation import is_traced, runtime_checks_enabled
 
-    if is_traced(value) and runtime_checks_enabled() and not _FUNCTIONAL.value:
+    if is_traced(value) and runtime_checks_enabled():
         leaves = jax.tree_util.tree_leaves(value)
         value = materialise(value, leaves[0])
     collected: list = []
