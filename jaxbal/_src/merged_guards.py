@@ -48,6 +48,7 @@ def merged_guards(checks: Callable[[T], T], value: T) -> T:
     with the merged check; the functional checks of :func:`~jaxbal.checked_jit`, which
     pass nothing on, had the same copy); the chained checks had been such boundaries
     themselves."""
+    # imported here: validation imports OPEN from this module
     from jaxbal._src.validation import is_traced, runtime_checks_enabled
 
     if is_traced(value) and runtime_checks_enabled():
