@@ -153,7 +153,7 @@ def test_com_trapezoid_valid_marks_the_samples_its_call_would_refuse():
 
 def test_checked_jit_reports_the_first_failed_check_whatever_was_traced_before():
     """checkify reports the failed check of lowest code, numbered as checks are traced:
-    each guard is traced anew (validation._functional_check), so a check of the same
+    each guard is traced anew (first_failure.functional_check), so a check of the same
     message and shapes traced earlier in the process (here "later" alone) does not keep
     an older code and win over the check that comes first in this program (as a
     non-finite wrench's message had replaced that of the non-finite state causing it)."""

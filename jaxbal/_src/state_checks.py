@@ -31,8 +31,9 @@ def state_check(robot: Robot, q, qd, qdd):
     def check(outputs):
         if not runtime_checks_enabled():
             return outputs  # nothing traced for a check that is off
-        state = jnp.stack([q, qd, qdd])
-        return guard(outputs, ~jnp.isfinite(state), MESSAGE, state)
+        # elementwise, not of a stacked copy: XLA wrote the stacked batch to memory
+        invalid = ~(jnp.isfinite(q) & jnp.isfinite(qd) & jnp.isfinite(qdd))
+        return guard(outputs, invalid, MESSAGE, (q, qd, qdd))
 
     if not is_traced(q, qd, qdd):  # concrete (even inside a jit): checked in NumPy now
         state = np.stack([np.asarray(q), np.asarray(qd), np.asarray(qdd)])

@@ -24,6 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 from jax.experimental import checkify
 
+from jaxbal._src.first_failure import functional_check
 from jaxbal._src.merged_guards import OPEN
 
 
@@ -166,6 +167,8 @@ def guard(value, invalid, message: str, offending, names=None):
     Eagerly a ``ValueError`` naming the offending entries (and their ``names``, if given);
     under ``jit``/``vmap`` an :func:`equinox.error_if` runtime error carrying ``message``
     (the data dependency on ``value`` keeps the check in the compiled graph).
+    ``offending`` is an array or a tuple of equally shaped arrays, reported stacked (a
+    tuple spares :func:`checked_jit`'s batched check a stacked copy of a whole batch).
     """
     if not is_traced(invalid, offending):
         bad = np.asarray(invalid)
@@ -180,7 +183,7 @@ def guard(value, invalid, message: str, offending, names=None):
         return value
     if _FUNCTIONAL.value:
         # braces of the message escaped: checkify formats it with the offending values
-        _functional_check(invalid, offending, text=message.replace("{", "{{").replace("}", "}}"))
+        functional_check(invalid, offending, text=message.replace("{", "{{").replace("}", "}}"))
         return value
     if OPEN:  # inside merged_guards: one runtime check for all (merged_guards module doc)
         OPEN[-1].append((jnp.any(invalid), message))
@@ -190,26 +193,6 @@ def guard(value, invalid, message: str, offending, names=None):
 
 #: whether traced guards are functional checkify checks (:func:`checked_jit`).
 _FUNCTIONAL = _TraceFlag(False)
-
-
-def _functional_check(invalid, offending, *, text: str) -> None:
-    """``checkify.check`` that ``invalid`` is all False, formatted with ``offending``,
-    inside a ``jit`` of its own.
-
-    ``checkify`` describes each formatting value by its sharding, which a traced value
-    does not have; JAX's ``AttributeError`` for that names the operations the value came
-    from, and for a value that depends on no argument of the program (e.g. a state of a
-    motion captured by the function) it pretty-printed the whole straight-line program:
-    30-70 ms per check, ~0.13 s of an Orthoglide gradient's trace. Inside the ``jit``
-    the value is an argument and nothing is printed. The ``jit`` is new at each call:
-    ``checkify`` reports the failed check of lowest code, codes are numbered as checks
-    are traced, and a reused trace would keep an older, lower code (a non-finite
-    wrench was then reported instead of the non-finite state that caused it)."""
-
-    def body(invalid, offending):
-        checkify.check(~jnp.any(invalid), text + ": {}", offending)
-
-    jax.jit(body)(invalid, offending)
 
 
 def checked_jit(fn):
@@ -287,9 +270,10 @@ def checked_jit(fn):
             else:
                 message = error.get()
                 if message is not None:
-                    # checkify appends " (`check` failed)" and the location on further lines
-                    text = message.split("\n")[0].strip()
-                    raise ValueError(text.removesuffix(" (`check` failed)"))
+                    # checkify appends " (`check` failed)" (the offending values of a
+                    # multi-row array, e.g. the state's q, qd, qdd, span several lines)
+                    head, failed, _ = message.rpartition(" (`check` failed)")
+                    raise ValueError((head if failed else message).strip())
                 return out
         try:
             return compiled("callback")(*args)
