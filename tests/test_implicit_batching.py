@@ -62,3 +62,34 @@ def test_checkify_accepts_the_batched_solve_and_gradients_are_implicit():
     np.testing.assert_allclose(
         np.asarray(per_d), np.sum(np.sqrt(CS)) / (2.0 * np.sqrt(np.asarray(DS))), rtol=1e-12
     )
+
+
+def _two_link_tip(q, target):
+    """Tip of a planar two-link arm (0.2 m, 0.2 m) minus ``target``."""
+    x = 0.2 * jnp.cos(q[0]) + 0.2 * jnp.cos(q[0] + q[1])
+    y = 0.2 * jnp.sin(q[0]) + 0.2 * jnp.sin(q[0] + q[1])
+    return jnp.stack([x, y]) - target
+
+
+def test_a_singular_start_takes_a_damped_step_and_converges():
+    """From the arm drawn straight (q = 0, singular Jacobian: Newton's step is not
+    finite), one Levenberg-Marquardt step leaves the singularity and Newton converges to
+    an exact inverse kinematics; batched, a problem with a regular start is solved as
+    before (the same bits as alone) next to one with a singular start."""
+    target = jnp.array([0.3, 0.2])
+    straight = jnp.zeros(2)
+    assert not bool(jnp.all(jnp.isfinite(jnp.linalg.solve(
+        jax.jacfwd(_two_link_tip)(straight, target), _two_link_tip(straight, target)
+    ))))  # fmt: skip
+    solution = newton_solve(_two_link_tip, straight, target)
+    assert bool(solution.converged)
+    np.testing.assert_allclose(np.asarray(_two_link_tip(solution.value, target)), 0.0, atol=1e-12)
+    bent = jnp.array([0.2, 1.2])
+    alone = newton_solve(_two_link_tip, bent, target).value
+    starts = jnp.stack([bent, straight])
+    both = jax.jit(jax.vmap(lambda x: newton_solve(_two_link_tip, x, target, throw=False)))(starts)
+    assert bool(jnp.all(both.converged))
+    np.testing.assert_array_equal(np.asarray(both.value[0]), np.asarray(alone))
+    # a Jacobian that vanishes (x² = 2 from x = 0) gives no direction: still refused
+    solve = newton_solve(lambda x, p: x**2 - p, jnp.zeros(1), jnp.array([2.0]), throw=False)
+    assert not bool(solve.converged)

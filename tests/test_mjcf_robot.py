@@ -674,6 +674,57 @@ def test_cli_balance_force_balances_the_five_bar(tmp_path):
     assert bad.exit_code == 2 and "unknown joint 'zz'" in bad.output
 
 
+def test_armature_is_refused_unless_ignored_also_by_the_cli(tmp_path):
+    """Joint armature (MuJoCo Menagerie's arms have it) is refused by default, by
+    ``from_mjcf`` and by ``jaxbal balance``; ignored on request, the robot's shaking
+    wrench is that of the same file without armature (a rotor inertia without a body
+    adds nothing to the base reaction jaxbal models), and the command runs from the
+    arm drawn straight (a singular start of its inverse kinematics). A pose of the wrong
+    length names its components."""
+    from jaxbal._src.cli import app
+
+    tip = '<site name="tip" pos="0.2 0 0"/>'
+    with_armature = _arm(joint='armature="0.1"', inside=tip)
+    robot = from_mjcf(with_armature, ignore_armature=True, end_effector_site="tip")
+    plain = from_mjcf(_arm(inside=tip), end_effector_site="tip")
+    state = (jnp.array([0.3, 1.1]), jnp.array([1.5, -2.0]), jnp.array([4.0, 3.0]))
+    for ours, reference in zip(
+        jaxbal.shaking_wrench(robot, *state), jaxbal.shaking_wrench(plain, *state), strict=True
+    ):
+        np.testing.assert_array_equal(ours, reference)
+    assert robot.pose_labels() == ("tip.x", "tip.y")
+    with pytest.raises(
+        ValueError, match=r"shape \(2,\), got \(3,\): the components are tip.x, tip.y"
+    ):
+        robot.inverse_kinematics(jnp.array([0.3, 0.2, 0.0]))
+    path = tmp_path / "arm.xml"
+    path.write_text(with_armature)
+    runner = CliRunner()
+    move = ["balance", str(path), "--site", "tip", "--start", "0.3,0.2", "--end", "0.25,0.25"]
+    refused = runner.invoke(app, [*move, "--samples", "11"])
+    assert refused.exit_code == 2 and "--ignore-armature" in refused.output
+    result = runner.invoke(app, [*move, "--samples", "11", "--ignore-armature"])
+    assert result.exit_code == 0, result.output
+    assert "balanced peak shaking force" in result.output
+
+
+def test_keyframe_reference_and_a_singular_start_named_with_its_remedies():
+    """``keyframe=`` starts the Newton solves from a ``<key>`` (unknown names listed).
+    A move whose pose equations are singular at the start (two coaxial hinges: the
+    tip depends on their sum only) is refused with the reason and the remedies."""
+    tip = '<site name="tip" pos="0.2 0 0"/>'
+    key = '<keyframe><key name="bent" qpos="0.4 0.9"/></keyframe>'
+    robot = from_mjcf(_arm(key, inside=tip), keyframe="bent")
+    np.testing.assert_array_equal(np.asarray(robot.reference), [0.4, 0.9])
+    with pytest.raises(ValueError, match=r"unknown keyframe 'home'; keyframes: \['bent'\]"):
+        from_mjcf(_arm(key, inside=tip), keyframe="home")
+    coaxial = _arm(inside=tip).replace('<body name="l2" pos="0.2 0 0">', '<body name="l2">')
+    robot = from_mjcf(coaxial, end_effector_site="tip")
+    start = robot.end_effector(jnp.array([0.3, 0.2]))
+    with pytest.raises(ValueError, match="singular configuration of the pose tip.x, tip.y"):
+        pose_samples(robot, start, start + 0.01, 0.1, 5)
+
+
 def test_four_bar_tree_on_a_fixed_frame_with_a_world_connect():
     """A four-bar written as a serial 3R on a fixed, rotated frame body, its tip
     connected to a world point. Its MuJoCo tree hangs the crank from the base at its

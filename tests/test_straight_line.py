@@ -196,17 +196,32 @@ def test_replay_setting_is_part_of_the_trace_key():
 def test_code_too_large_to_pay_off_runs_as_written(monkeypatch):
     """Generated code above MAX_GENERATED operations is not used (found with an MJCF
     3-RRR: 9,148 operations compiled in 8 s for a 1.3x faster wrench): the function is
-    evaluated as written, with the same values."""
+    evaluated as written, with the same values, and the generation stops as soon as it
+    passes the limit."""
     from jaxbal._src import straight_line as module
 
     def f(x):
         return jnp.sum(jnp.sin(x) * jnp.cos(x[::-1]) + x**2)
 
+    from jaxbal._src import scalar_rules
+
     x = jnp.linspace(0.1, 1.0, 12)
     replayed_code = jax.make_jaxpr(straight_line(f))(x)
+    traced = []  # the operations the interpreter emits on traced values
+    emit = scalar_rules._emit
+
+    def spy(name, primitive, params, args, dtype):
+        traced.append(not all(scalar_rules.concrete(a) for a in args))
+        return emit(name, primitive, params, args, dtype)
+
+    monkeypatch.setattr(scalar_rules, "_emit", spy)
+    jax.make_jaxpr(straight_line(f))(x)
+    emitted_in_full, traced[:] = sum(traced), []
     monkeypatch.setattr(module, "MAX_GENERATED", 5)
     plain = jax.make_jaxpr(straight_line(f))(x)  # a new wrapper: its own cache
     assert str(plain) == str(jax.make_jaxpr(f)(x)) != str(replayed_code)
+    # the generation stopped at the limit instead of generating everything first
+    assert emitted_in_full > 40 and sum(traced) == 6
     np.testing.assert_allclose(float(jax.jit(straight_line(f))(x)), float(f(x)), rtol=1e-15)
 
 

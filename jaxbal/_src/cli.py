@@ -77,7 +77,9 @@ _BALANCE_HELP = (
     "ROBOT is loaded with MuJoCo's compiler (hinge, slide and ball joints, connect loop "
     "closures; see jaxbal.robots.from_mjcf). The end-effector SITE moves on a straight line "
     "from START to END in DURATION seconds with a quintic profile; a pose lists the site's "
-    "coordinates along the axes it can move in (x,y for a mechanism in the x-y plane), in m. "
+    "coordinates along the axes it can move in (x,y for a mechanism in the x-y plane), in m, "
+    "then, for an arm with more joints than those axes (a 6-joint arm), the values of its "
+    "last joints in rad (a pose of the wrong length is refused with its components named). "
     "The command prints the peak shaking force (N) and moment about the base origin (N·m), "
     "then puts a point counter-mass on each counter body (the mirror image of the body's "
     "mass about its frame origin), co-designs their positions in the body frames for the "
@@ -114,6 +116,21 @@ def balance(
     conditions: bool = typer.Option(
         False, "--conditions", help="print the force-balancing conditions along the move"
     ),
+    ignore_armature: bool = typer.Option(
+        False,
+        "--ignore-armature",
+        help="drop joint armature (rotor inertia without a body, e.g. MuJoCo Menagerie arms)",
+    ),
+    ik_free: str = typer.Option(
+        None,
+        "--ik-free",
+        help="joints whose values complete the pose, e.g. j3,j5,j6,j7 (default: the last ones)",
+    ),
+    keyframe: str = typer.Option(
+        None,
+        "--keyframe",
+        help="start the inverse kinematics from this <key> of the model (default: qpos0)",
+    ),
 ):
     """Shaking-force peaks of a move of ROBOT and a force-balancing counter-mass design."""
     from jaxbal._src.robots.mjcf_balance import balance as codesign_counter_masses
@@ -122,7 +139,13 @@ def balance(
 
     try:
         mechanism = from_mjcf(
-            robot, actuated=actuated, independent=independent, end_effector_site=site
+            robot,
+            actuated=actuated,
+            independent=independent,
+            end_effector_site=site,
+            ignore_armature=ignore_armature,
+            keyframe=keyframe,
+            ik_free=ik_free,
         )
         motion = pose_samples(
             mechanism, _floats(start, "--start"), _floats(end, "--end"), duration, samples

@@ -25,7 +25,9 @@ the returned ``converged`` mask instead.
 
 References:
     Krantz & Parks (2002), *The Implicit Function Theorem*; Blondel et al. (2022),
-    "Efficient and modular implicit differentiation", NeurIPS.
+    "Efficient and modular implicit differentiation", NeurIPS; Yamashita & Fukushima
+    (2001), "On the rate of convergence of the Levenberg-Marquardt method",
+    Computing Suppl. 15 (the step at a singular Jacobian).
 """
 
 from __future__ import annotations
@@ -92,7 +94,7 @@ def _newton_stack(residual, tol, max_steps, axes):
         def body(state):
             step, x, norm = state
             active = norm > tol  # False for a converged or a non-finite problem
-            dx = jnp.linalg.solve(jac(x, params), res(x, params)[..., None])[..., 0]
+            dx = _step(jac(x, params), res(x, params))
             x_new = jnp.where(active[:, None], x - dx, x)
             return step + 1, x_new, jnp.where(active, norms(x_new), norm)
 
@@ -141,6 +143,28 @@ def _newton_stack(residual, tol, max_steps, axes):
             return solve(xs, params)
 
     return checks_off
+
+
+def _step(jacobian: Float[Array, "n k k"], r: Float[Array, "n k"]) -> Float[Array, "n k"]:
+    """Newton's step ``J⁻¹ r`` of each problem, or, where it is not finite (a singular
+    Jacobian: e.g. an MJCF arm drawn straight, the usual ``qpos0``, whose inverse
+    kinematics starts there), a Levenberg-Marquardt step ``(JᵀJ + μI)⁻¹ Jᵀ r`` with
+    ``μ = ‖r‖ (tr(JᵀJ)/k + ‖r‖)`` (Yamashita & Fukushima 2001), which leaves the
+    singular configuration. Problems with a finite Newton step are unchanged."""
+    newton = jnp.linalg.solve(jacobian, r[..., None])[..., 0]
+    finite = jnp.all(jnp.isfinite(newton), axis=-1, keepdims=True)
+
+    def levenberg(_):
+        normal = jnp.einsum("nik,nil->nkl", jacobian, jacobian)
+        size = r.shape[-1]
+        length = jnp.linalg.norm(r, axis=-1)
+        mu = length * (jnp.trace(normal, axis1=-2, axis2=-1) / size + length)
+        damped = normal + mu[:, None, None] * jnp.eye(size)
+        step = jnp.linalg.solve(damped, jnp.einsum("nik,ni->nk", jacobian, r)[..., None])
+        return jnp.where(finite, newton, step[..., 0])
+
+    # the predicate is one scalar for the whole stack (the loop's own batching)
+    return jax.lax.cond(jnp.all(finite), lambda _: newton, levenberg, None)
 
 
 @partial(jax.custom_jvp, nondiff_argnums=(0, 3, 4))

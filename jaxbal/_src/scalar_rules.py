@@ -134,21 +134,35 @@ def _is_value(x, value) -> bool:
 #: ``cos q_1`` of several bodies' poses, the same product in a cross product and in its
 #: derivative) is emitted once. The arguments are kept so that their ids stay unique.
 _EMITTED: dict | None = None
+#: While :func:`shared_subexpressions` has a budget: ``[operations left]``.
+_BUDGET: list | None = None
+
+
+class TooLarge(Exception):
+    """More traced scalar operations than the budget of :class:`shared_subexpressions`."""
 
 
 class shared_subexpressions:
     """A context in which :func:`_scalar_op` emits each distinct operation once
     (common-subexpression elimination: the same primitive with the same parameters on
-    the same traced values or constants returns the earlier result, bit for bit)."""
+    the same traced values or constants returns the earlier result, bit for bit).
+
+    With a ``budget``, emitting more than ``budget`` operations on traced values raises
+    :class:`TooLarge` (each is one equation of the traced program, so a program cut
+    short would have had more than ``budget`` equations)."""
+
+    def __init__(self, budget: int | None = None):
+        self.budget = budget
 
     def __enter__(self):
-        global _EMITTED
-        self._outer, _EMITTED = _EMITTED, {}
+        global _EMITTED, _BUDGET
+        self._outer = (_EMITTED, _BUDGET)
+        _EMITTED, _BUDGET = {}, (None if self.budget is None else [self.budget])
         return self
 
     def __exit__(self, *exc):
-        global _EMITTED
-        _EMITTED = self._outer
+        global _EMITTED, _BUDGET
+        _EMITTED, _BUDGET = self._outer
 
 
 #: binary operations whose result does not depend on the order of their operands
@@ -201,6 +215,10 @@ def _emit(name, primitive, params, args, dtype):
                 return args[1 - k]
     if name == "select_n" and concrete(args[0]):
         return args[1 + int(args[0])]
+    if _BUDGET is not None:
+        _BUDGET[0] -= 1
+        if _BUDGET[0] < 0:
+            raise TooLarge
     if primitive is None:
         return _LAX[name](*args)
     return primitive.bind(*args, **params)

@@ -8,7 +8,9 @@ generic tools:
    (:meth:`~jaxbal._src.robots.mjcf_robot.MjcfRobot.pose_motion`,
    :meth:`~jaxbal._src.robots.mjcf_robot.MjcfRobot.closure_motion`), solved in time
    order, each Newton solve started from the previous instant's solution (the first
-   from the robot's ``reference``), compiled once per robot structure;
+   from the robot's ``reference``), compiled once per robot structure with the checks
+   as functional errors (:func:`~jaxbal.checked_jit`), so the persistent compilation
+   cache keeps the program for the next process;
 2. :func:`with_counter_masses`: a counter-mass on each chosen body, started as the
    mirror image of the body's own mass about its frame origin;
 3. :func:`balance`: :func:`jaxbal.design.codesign` of the counter-mass positions (and,
@@ -24,7 +26,6 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -34,8 +35,9 @@ from jaxbal._src.metrics import Motion, peak_force, peak_moment
 from jaxbal._src.profiles import Quintic
 from jaxbal._src.robots.counter_mass import add_counter_mass
 from jaxbal._src.robots.mjcf_robot import MjcfRobot
+from jaxbal._src.robots.mjcf_solve import pose_equations
 from jaxbal._src.trajectory import StraightLine, sample, sample_times
-from jaxbal._src.validation import raise_if_invalid
+from jaxbal._src.validation import checked_call, raise_if_invalid
 
 __all__ = ["Balance", "balance", "closure_samples", "pose_samples", "with_counter_masses"]
 
@@ -52,7 +54,6 @@ def _continued(solve, start, inputs):
     return jax.lax.scan(step, start, inputs)[1]
 
 
-@eqx.filter_jit
 def _pose_states(robot, line, times):
     def solve(a, b, c, guess):
         return robot.pose_motion(a, b, c, guess, return_valid=True)
@@ -60,7 +61,6 @@ def _pose_states(robot, line, times):
     return _continued(solve, robot.reference, sample(line, times, order=2))
 
 
-@eqx.filter_jit
 def _closure_states(robot, line, times):
     def solve(a, b, c, guess):
         return robot.closure_motion(a, b, c, guess, return_valid=True)
@@ -68,10 +68,28 @@ def _closure_states(robot, line, times):
     return _continued(solve, robot.reference, sample(line, times, order=2))
 
 
-def _samples(states, times, what: str) -> Motion:
+def _samples(states, times, what: str, hint: str = "") -> Motion:
     q, q_d, q_dd, valid = states
-    raise_if_invalid(valid, f"{what} leaves the mechanism's reach (Newton fails) at t [s]", times)
+    message = f"{what} leaves the mechanism's reach (Newton fails){hint} at t [s]"
+    raise_if_invalid(valid, message, times)
     return Motion(q, q_d, q_dd)
+
+
+def _singular_start(robot: MjcfRobot) -> str:
+    """A hint when the Jacobian of the pose equations (loop closures, then the pose) is
+    singular at the robot's ``reference``, where every solve of a move starts: e.g. a
+    7-joint arm whose pose is its site's position and its last four joints, drawn with
+    its first and third axes aligned."""
+    jacobian = np.asarray(jax.jacfwd(lambda q: pose_equations(robot, q))(robot.reference))
+    singular = np.linalg.svd(jacobian, compute_uv=False)
+    if singular[-1] > 1e-9 * singular[0]:
+        return ""
+    return (
+        f" (the start, the reference q = {np.asarray(robot.reference).round(6).tolist()}, "
+        f"is a singular configuration of the pose {', '.join(robot.pose_labels())}: start "
+        "from another keyframe (keyframe=, --keyframe) or complete the pose with other "
+        "joints (ik_free=, --ik-free))"
+    )
 
 
 def pose_samples(robot: MjcfRobot, start, end, duration, count: int = 101, profile=None):
@@ -92,7 +110,9 @@ def pose_samples(robot: MjcfRobot, start, end, duration, count: int = 101, profi
     """
     line = StraightLine(start, end, Quintic() if profile is None else profile, duration)
     times = sample_times(duration, count)
-    return _samples(_pose_states(robot, line, times), times, "end-effector line")
+    states = checked_call(_pose_states, robot, line, times)
+    hint = "" if bool(np.all(np.asarray(states[3]))) else _singular_start(robot)
+    return _samples(states, times, "end-effector line", hint)
 
 
 def closure_samples(robot: MjcfRobot, start, end, duration, count: int = 101, profile=None):
@@ -100,7 +120,7 @@ def closure_samples(robot: MjcfRobot, start, end, duration, count: int = 101, pr
     ``(m,)`` [rad, m] (loop closures solved at every instant)."""
     line = StraightLine(start, end, Quintic() if profile is None else profile, duration)
     times = sample_times(duration, count)
-    return _samples(_closure_states(robot, line, times), times, "joint line")
+    return _samples(checked_call(_closure_states, robot, line, times), times, "joint line")
 
 
 def with_counter_masses(robot: MjcfRobot, bodies=None, scale: float = 1.0) -> MjcfRobot:
@@ -142,7 +162,6 @@ class Balance(NamedTuple):
     unbalanced_peak_moment: float
 
 
-@eqx.filter_jit
 def _peaks(robot, motion):
     return peak_force(robot, motion), peak_moment(robot, motion)
 
@@ -171,10 +190,10 @@ def balance(
     if not robot.counter_names:
         raise ValueError("the robot has no counter-masses: use with_counter_masses first")
     bare = robot.with_design({"counter_mass": jnp.zeros_like(robot.counter_mass)})
-    unbalanced = [float(v) for v in _peaks(bare, motion)]
-    before = [float(v) for v in _peaks(robot, motion)]
+    unbalanced = [float(v) for v in checked_call(_peaks, bare, motion)]
+    before = [float(v) for v in checked_call(_peaks, robot, motion)]
     solution = codesign(robot, motion, "rms_force", free=free, max_steps=max_steps, gtol=gtol)
-    after = [float(v) for v in _peaks(solution.robot, motion)]
+    after = [float(v) for v in checked_call(_peaks, solution.robot, motion)]
     return Balance(
         robot=solution.robot,
         solution=solution,

@@ -47,6 +47,18 @@ def _coordinates(parsed, names: Sequence[str], what: str) -> tuple[int, ...]:
     return tuple(indices)
 
 
+def _reference(model, parsed, keyframe: str | None) -> np.ndarray:
+    """``qpos0``, or the ``qpos`` of the model's ``<key>`` named ``keyframe``."""
+    if keyframe is None:
+        return parsed.qpos0
+    import mujoco
+
+    names = [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_KEY, k) for k in range(model.nkey)]
+    if keyframe not in names:
+        raise ValueError(f"unknown keyframe {keyframe!r}; keyframes: {names}")
+    return np.array(model.key_qpos[names.index(keyframe)], dtype=float)
+
+
 def _moving_index(parsed, moving: tuple[int, ...], name: str, what: str) -> int:
     if name not in parsed.body_names:
         raise ValueError(f"{what}: unknown body {name!r}; bodies: {list(parsed.body_names)}")
@@ -66,6 +78,7 @@ def from_mjcf(
     ik_free=None,
     payload_body: str | None = None,
     ignore_armature: bool = False,
+    keyframe: str | None = None,
 ) -> MjcfRobot:
     """A jaxbal robot from an MJCF (or URDF) mechanism: XML text, a path or an ``MjModel``.
 
@@ -86,6 +99,9 @@ def from_mjcf(
         payload_body: a moving body whose mass is the design variable ``payload``.
         ignore_armature: accept joint armature (MuJoCo's rotor inertia, which has no
             base reaction) and leave it out; by default it is refused.
+        keyframe: a ``<key>`` of the model whose ``qpos`` is the robot's ``reference``,
+            the start of its Newton solves (picks the assembly mode; default: the
+            model's ``qpos0``, often an arm drawn straight, a singular configuration).
 
     Returns:
         An :class:`~jaxbal._src.robots.mjcf_robot.MjcfRobot`.
@@ -165,7 +181,7 @@ def from_mjcf(
         anchor1=jnp.asarray(parsed.anchor1),
         anchor2=jnp.asarray(parsed.anchor2),
         site_pos=jnp.asarray(site_pos, dtype=float),
-        reference=jnp.asarray(parsed.qpos0),
+        reference=jnp.asarray(_reference(model, parsed, keyframe)),
         counter_mass=jnp.zeros(0),
         counter_position=jnp.zeros((0, 3)),
         counter_inertia=jnp.zeros((0, 3, 3)),

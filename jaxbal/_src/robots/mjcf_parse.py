@@ -131,7 +131,8 @@ def _refuse_unsupported(model, ignore_armature: bool) -> None:
             name = _name(model, "joint", int(model.dof_jntid[d]), "joint")
             raise ValueError(
                 f"joint {name!r} has armature {model.dof_armature[d]:g} (a rotor inertia "
-                "without a body): model the rotor as a body, or pass ignore_armature=True"
+                "without a body): model the rotor as a body, or pass ignore_armature=True "
+                "(jaxbal balance: --ignore-armature)"
             )
     for e in range(model.neq):
         name = _name(model, "eq", e, "equality")

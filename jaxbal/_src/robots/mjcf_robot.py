@@ -294,6 +294,14 @@ class MjcfRobot(Robot):
         q = jnp.asarray(q, dtype=float)
         return self.pose_at(q, world_frames(self, q))
 
+    def pose_labels(self) -> tuple[str, ...]:
+        """Names of the components of :meth:`end_effector`, e.g. ``('tip.x', 'tip.y')``
+        or, for a 6-joint arm, ``('hand.x', 'hand.y', 'hand.z', 'wrist_1', …)``: the
+        site's world axes, then the ``ik_free`` joints."""
+        self.require_site()
+        axes = tuple(f"{self.site_name}.{'xyz'[c]}" for c in self.pose_components)
+        return axes + tuple(self.joint_names[self.joint_qpos.index(i)] for i in self.ik_free)
+
     def pose_at(self, q, frames) -> Float[Array, " m"]:
         """:meth:`end_effector` from already computed ``world_frames``."""
         site = point_in_world(*frames, self.site_body, self.site_pos)

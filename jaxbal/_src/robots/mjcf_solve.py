@@ -26,7 +26,7 @@ from jaxbal._src.implicit import newton_solve
 from jaxbal._src.robots.mjcf_kinematics import world_frames
 from jaxbal._src.validation import check_shape, guard
 
-__all__ = ["closure", "closure_motion", "inverse_kinematics", "pose_motion"]
+__all__ = ["closure", "closure_motion", "inverse_kinematics", "pose_equations", "pose_motion"]
 
 
 def _closure_residual(x, params):
@@ -38,7 +38,7 @@ def _closure_residual(x, params):
 def _ik_residual(q, params):
     """``(Φ(q), pose(q) − pose)``: loop closures and the end-effector pose."""
     robot, pose = params
-    return _pose_equations(robot, q) - jnp.concatenate([jnp.zeros(robot.closure_count()), pose])
+    return pose_equations(robot, q) - jnp.concatenate([jnp.zeros(robot.closure_count()), pose])
 
 
 def _check_square(robot, unknowns: int, equations: int, what: str) -> None:
@@ -123,7 +123,7 @@ def closure_motion(robot, u, u_d, u_dd, guess=None, *, return_valid: bool = Fals
     return (q, q_d, q_dd, valid) if return_valid else (q, q_d, q_dd)
 
 
-def _pose_equations(robot, q):
+def pose_equations(robot, q):
     """``(Φ(q), pose(q))``: the loop closures and the end-effector pose."""
     frames = world_frames(robot, q)
     return jnp.concatenate([robot.closures_at(q, frames), robot.pose_at(q, frames)])
@@ -145,7 +145,7 @@ def pose_motion(robot, pose, pose_d, pose_dd, guess=None, *, return_valid: bool 
     closures = robot.closure_count()
 
     def equations(x):
-        return _pose_equations(robot, x)
+        return pose_equations(robot, x)
 
     jacobian = jax.jacfwd(equations)(q)
     zeros = jnp.zeros(closures)
@@ -178,8 +178,13 @@ def inverse_kinematics(robot, pose, guess=None, *, return_valid: bool = False):
     """
     robot.require_site()
     pose = jnp.asarray(pose, dtype=float)
-    size = len(robot.pose_components) + len(robot.ik_free)
-    check_shape("pose", pose, (size,))
+    labels = robot.pose_labels()
+    if pose.shape != (len(labels),):
+        raise ValueError(
+            f"pose must have shape ({len(labels)},), got {pose.shape}: the components are "
+            f"{', '.join(labels)} [m for the site's axes, rad or m for the joints]"
+        )
+    size = len(labels)
     _check_square(robot, robot.dof, robot.closure_count() + size, "inverse kinematics")
     start = robot.reference if guess is None else jnp.asarray(guess, dtype=float)
     check_shape("guess", start, (robot.dof,))
