@@ -170,7 +170,7 @@ def _generate(fn, leaves, treedef, traced):
 
     def program(*values):
         # stopped as soon as it emits more operations than the limit (TooLarge): the
-        # MJCF UR5e's, 3-RRR's and RUSR's 3,028-6,472 took 0.4-1.2 s to generate in full
+        # MJCF UR5e's, 3-RRR's and RUSR's (about 3,000-6,500) took 0.4-1.2 s in full
         with shared_subexpressions(budget=MAX_GENERATED):
             outs = evaluate(closed.jaxpr, closed.consts, [split(v) for v in values])
         return [join(o, s.dtype) for o, s in zip(outs, flat_shapes, strict=True)]

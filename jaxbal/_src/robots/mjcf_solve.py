@@ -184,8 +184,7 @@ def inverse_kinematics(robot, pose, guess=None, *, return_valid: bool = False):
             f"pose must have shape ({len(labels)},), got {pose.shape}: the components are "
             f"{', '.join(labels)} [m for the site's axes, rad or m for the joints]"
         )
-    size = len(labels)
-    _check_square(robot, robot.dof, robot.closure_count() + size, "inverse kinematics")
+    _check_square(robot, robot.dof, robot.closure_count() + len(labels), "inverse kinematics")
     start = robot.reference if guess is None else jnp.asarray(guess, dtype=float)
     check_shape("guess", start, (robot.dof,))
     solution = newton_solve(
