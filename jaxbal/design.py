@@ -5,6 +5,7 @@ See :mod:`jaxbal._src.design` (loss, bounds, compilation) and :mod:`jaxbal._src.
 """
 
 from jaxbal._src.design import (
+    AT_BOUND_RTOL,
     CONSTRAINT_PENALTY,
     FEASIBILITY_RTOL,
     START_OFFSET,
@@ -47,6 +48,7 @@ from jaxbal._src.pareto import (
 )
 
 __all__ = [
+    "AT_BOUND_RTOL",
     "CONSTRAINT_PENALTY",
     "CONSTRAINT_RTOL",
     "DOMINANCE_RTOL",

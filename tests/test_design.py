@@ -73,6 +73,36 @@ def test_planar_2r_reaches_closed_form(motion_2r):
     assert float(solution.value) < 1e-12 < float(solution.initial_value)
 
 
+def test_at_bound_marks_the_active_bounds(motion_2r):
+    """2R counterweight masses (RMS force, convex): free, the closed form is inside (no
+    mark); with the first mass capped at half its closed form, the optimum puts it on
+    the cap (+1) and the second on 0 kg (-1: removed), with the default optimiser and
+    with optax's L-BFGS alike, the values on the bounds to 1e-9 kg."""
+    import optax
+
+    arm = _arm_2r()
+    expected = planar_arm.force_balanced(arm, COUNTER_DISTANCES_2R).counter_masses
+    free = codesign(arm, motion_2r, free=["counter_mass"])
+    np.testing.assert_array_equal(free.at_bound["counter_mass"], [0, 0])
+    cap = {"counter_mass": jnp.array([0.5 * expected[0], 2.0 * expected[1]])}
+    for optimizer in (None, optax.lbfgs()):
+        capped = codesign(arm, motion_2r, free=["counter_mass"], upper=cap, optimizer=optimizer)
+        assert set(capped.at_bound) == {"counter_mass"}
+        np.testing.assert_array_equal(capped.at_bound["counter_mass"], [1, -1])
+        np.testing.assert_allclose(
+            capped.design["counter_mass"], [0.5 * expected[0], 0.0], rtol=1e-12, atol=1e-9
+        )
+
+
+def test_start_outside_the_bounds_is_named(motion_2r):
+    """A start outside its bounds names the entry, its value and the bounds."""
+    with pytest.raises(ValueError, match=r"\[1\] = 3 not in \[0, 2\]"):
+        codesign(
+            _arm_2r(), motion_2r, free=["counter_mass"], start={"counter_mass": [1.0, 3.0]},
+            upper={"counter_mass": 2.0},
+        )  # fmt: skip
+
+
 def test_second_call_does_not_retrace(motion_2r):
     """A second co-design of a 2R with another payload and start reuses the compiled
     L-BFGS loop and evaluation: the objective is not traced again (trace count), and

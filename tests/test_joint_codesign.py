@@ -57,9 +57,15 @@ def test_joint_optimum_is_stationary_and_feasible(problem):
     assert bool(solution.feasible)
     before, after = solution.metrics["rms_force"]
     assert float(after) < float(before)
-    # trajectory inside its bounds
+    # trajectory inside its bounds; the bound marks where the values touch them
     for name, x in solution.trajectory.items():
         assert LOWER[name] <= float(x) <= UPPER[name]
+        side = int(solution.trajectory_at_bound[name])
+        touching = (float(x) - LOWER[name] < 1e-9, UPPER[name] - float(x) < 1e-9)
+        assert side == (-1 if touching[0] else 1 if touching[1] else 0), (name, x, side)
+    assert set(solution.at_bound) == {"counter_mass", "counter_distance"}
+    mass = np.asarray(solution.design["counter_mass"])
+    np.testing.assert_array_equal(solution.at_bound["counter_mass"] == -1, mass < 1e-9)
 
 
 @pytest.mark.slow

@@ -639,6 +639,26 @@ def test_counter_masses_and_design_variables():
         robot.with_body("extra", mass=1.0)
 
 
+def test_balance_reports_the_bounds_it_reached(five_bar):
+    """Counter positions boxed in ±2 cm (the start, outside, moved onto the box): the
+    cranks' counter-masses need 0.5-1 m arms (unboxed optimum, interior: at_bound all
+    0), so the optimum sits on the box in x and y (-1/+1 marks, values exactly on it)
+    and z, on which the planar force does not depend, stays inside; the boxed peak
+    force stays well above the unboxed one (> 10x)."""
+    from jaxbal._src.robots.mjcf_balance import balance
+
+    robot, motion = five_bar
+    box = {"lower": {"counter_position": -0.02}, "upper": {"counter_position": 0.02}}
+    boxed, free = balance(robot, motion, **box), balance(robot, motion)
+    assert not np.any(free.solution.at_bound["counter_position"])
+    assert np.all(np.abs(free.robot.design()["counter_position"][:, 0]) > 0.5)
+    sides = boxed.solution.at_bound["counter_position"]
+    position = np.asarray(boxed.robot.design()["counter_position"])
+    assert np.all(sides[:, :2] != 0) and np.all(sides[:, 2] == 0)
+    np.testing.assert_array_equal(position[:, :2], 0.02 * sides[:, :2])
+    assert boxed.peak_force[1] > 10 * free.peak_force[1]
+
+
 # --- command line ------------------------------------------------------------------------
 
 
@@ -670,6 +690,11 @@ def test_cli_balance_force_balances_the_five_bar(tmp_path):
     lines = with_conditions.output.splitlines()
     assert "force-balancing conditions along the move (6):" in lines
     assert float(lines[-1].split()[-1]) < 1e-9  # the co-designed design meets them
+    assert "[!]" not in result.output  # nothing on a bound, no worse than unbalanced
+    boxed = runner.invoke(app, ["balance", str(path), *options, *poses, "--position-bound", "0.02"])
+    assert boxed.exit_code == 0, boxed.output
+    assert boxed.output.count("xy on a bound") == 4 and "widen --position-bound" in boxed.output
+    assert "exceeds the robot's without counter-masses" in boxed.output  # fixed masses
     bad = runner.invoke(app, ["balance", str(path), "--actuated", "a,zz", *poses])
     assert bad.exit_code == 2 and "unknown joint 'zz'" in bad.output
 

@@ -131,6 +131,11 @@ def balance(
         "--keyframe",
         help="start the inverse kinematics from this <key> of the model (default: qpos0)",
     ),
+    position_bound: float = typer.Option(
+        None,
+        "--position-bound",
+        help="counter positions within ±B per coordinate (m; default: ≥ −10× the size)",
+    ),
 ):
     """Shaking-force peaks of a move of ROBOT and a force-balancing counter-mass design."""
     from jaxbal._src.robots.mjcf_balance import balance as codesign_counter_masses
@@ -153,7 +158,13 @@ def balance(
         bodies = None if counter_bodies is None else counter_bodies.split(",")
         start_design = with_counter_masses(mechanism, bodies)
         free = ("counter_position", "counter_mass") if free_masses else ("counter_position",)
-        result = codesign_counter_masses(start_design, motion, free=free)
+        bounds = {}
+        if position_bound is not None:
+            bounds = {
+                "lower": {"counter_position": -position_bound},
+                "upper": {"counter_position": position_bound},
+            }
+        result = codesign_counter_masses(start_design, motion, free=free, **bounds)
     except ValueError as error:
         typer.echo(f"error: {error}", err=True)
         raise typer.Exit(code=2) from None
@@ -166,9 +177,20 @@ def balance(
         name = result.robot.mass_names()[body]
         mass = float(design["counter_mass"][k])
         x, y, z = (float(v) for v in design["counter_position"][k])
-        typer.echo(f"  {name:16s} {mass:10.6g} kg at ({x:.6g}, {y:.6g}, {z:.6g})")
+        where = f"({x:.6g}, {y:.6g}, {z:.6g})"
+        typer.echo(f"  {name:16s} {mass:10.6g} kg at {where}{_flags(result, k)}")
+    typer.echo(f"  added mass {float(np.sum(design['counter_mass'])):.6g} kg")
+    if any(np.any(side) for side in result.solution.at_bound.values()):
+        typer.echo("  [!] on a bound: the bound, not the physics, stopped the optimiser there")
+        typer.echo("      (widen --position-bound); a mass on 0 kg was removed")
     typer.echo(f"balanced peak shaking force  {result.peak_force[1]:.6g} N")
     typer.echo(f"balanced peak shaking moment {result.peak_moment[1]:.6g} N·m")
+    if result.peak_force[1] > result.unbalanced_peak_force:
+        typer.echo(
+            "[!] the balanced peak force exceeds the robot's without counter-masses: "
+            "the masses or their bounds cannot balance this move (try --free-masses, "
+            "a wider --position-bound or other --counter-bodies)"
+        )
     if conditions:
         from jaxbal._src.regressor import balancing_conditions
 
@@ -178,6 +200,19 @@ def balance(
             typer.echo(f"  {equation}")
         residual = float(np.max(np.abs(found.residuals(result.robot)), initial=0.0))
         typer.echo(f"largest residual of the design {residual:.3g}")
+
+
+def _flags(result, k: int) -> str:
+    """The bound marks of counter-mass ``k`` of a balance ``result``: which position
+    coordinates (x, y, z) and whether its mass sit on a bound."""
+    contacts = result.solution.at_bound
+    marks = []
+    if "counter_position" in contacts:
+        axes = [a for a, side in zip("xyz", contacts["counter_position"][k], strict=True) if side]
+        marks += [f"{''.join(axes)} on a bound"] if axes else []
+    if "counter_mass" in contacts and contacts["counter_mass"][k] < 0:
+        marks.append("0 kg")
+    return f"  [!] {', '.join(marks)}" if marks else ""
 
 
 @app.command("sweep")

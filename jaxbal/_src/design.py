@@ -89,7 +89,13 @@ from jaxbal._src.design_loss import (
     design_loss,
     loss_grad_function,
 )
-from jaxbal._src.design_solution import FEASIBILITY_RTOL, DesignSolution, _solution
+from jaxbal._src.design_solution import (
+    AT_BOUND_RTOL,
+    FEASIBILITY_RTOL,
+    DesignSolution,
+    _contacts,
+    _solution,
+)
 from jaxbal._src.host_bfgs import HOST_MAX_VARIABLES, host_bfgs
 from jaxbal._src.lbfgsb import lbfgsb
 from jaxbal._src.metrics import (
@@ -108,6 +114,7 @@ from jaxbal._src.robot import Robot
 from jaxbal._src.validation import check_stopping, runtime_checks
 
 __all__ = [
+    "AT_BOUND_RTOL",
     "CONSTRAINT_PENALTY",
     "FEASIBILITY_RTOL",
     "REDUCE_MIN_VARIABLES",
@@ -291,8 +298,19 @@ def codesign(
         # a design read back from a robot (e.g. a solution's, as the next start) may sit
         # a rounding error outside a bound it reached: accepted, and clipped onto it
         slack = BOUND_RTOL * np.maximum(1.0, np.abs(x0[name]))
-        if np.any(x0[name] < lo - slack) or np.any(x0[name] > hi + slack):
-            raise ValueError(f"start of {name!r} = {x0[name]!r} lies outside its bounds")
+        outside = (x0[name] < lo - slack) | (x0[name] > hi + slack)
+        if np.any(outside):
+            where = [tuple(int(i) for i in k) for k in np.argwhere(outside)][:4]
+            listed = ", ".join(
+                f"[{', '.join(map(str, k))}] = {float(np.asarray(x0[name])[k]):.6g} not in "
+                f"[{float(np.broadcast_to(lo, outside.shape)[k]):.6g}, "
+                f"{float(np.broadcast_to(hi, outside.shape)[k]):.6g}]"
+                for k in where
+            )
+            raise ValueError(
+                f"start of {name!r} lies outside its bounds ({int(outside.sum())} entries): "
+                f"{listed}; pass start= inside lower=/upper="
+            )
         x0[name] = np.clip(x0[name], lo, hi)
 
     everything = terms + tuple(m for m in constrained if m not in terms)
@@ -351,4 +369,5 @@ def codesign(
         steps=solution.steps,
         grad_norm=solution.grad_norm,
         history=solution.history,
+        at_bound=_contacts(optimised, problem),
     )

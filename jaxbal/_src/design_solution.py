@@ -13,10 +13,40 @@ from jaxbal._src.metrics import metric_name
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
 
-__all__ = ["FEASIBILITY_RTOL", "DesignSolution"]
+__all__ = ["AT_BOUND_RTOL", "FEASIBILITY_RTOL", "DesignSolution", "bound_contacts"]
 
 #: a constraint ``c ≤ b`` is reported satisfied when ``c ≤ b + FEASIBILITY_RTOL·σ``.
 FEASIBILITY_RTOL = 1e-3
+
+#: a variable is reported at a bound within this fraction of its range (two-sided
+#: bounds) or of ``max(1, |bound|)`` SI units (a lower bound alone): e.g. 1 mg for a
+#: mass bounded below by 0 kg, 10 µm for a position bounded below by −10 m.
+AT_BOUND_RTOL = 1e-6
+
+
+def bound_contacts(values, free, lower, upper, two_sided) -> dict[str, np.ndarray]:
+    """Which entries of the optimised variables sit on a bound.
+
+    Args:
+        values: name -> optimised value (array, SI units).
+        free, lower, upper, two_sided: the variables' names, their bounds (arrays of
+            their shapes) and whether each has an upper bound (as in the co-design
+            problem).
+
+    Returns:
+        name -> integer array of the variable's shape: ``-1`` on the lower bound,
+        ``+1`` on the upper bound, ``0`` inside (within :data:`AT_BOUND_RTOL`).
+    """
+    contacts = {}
+    for name, lo, hi, two in zip(free, lower, upper, two_sided, strict=True):
+        x, lo, hi = (np.asarray(a, dtype=float) for a in (values[name], lo, hi))
+        scale = (hi - lo) if two else np.maximum(1.0, np.abs(lo))
+        tolerance = AT_BOUND_RTOL * scale
+        side = np.where(x - lo <= tolerance, -1, 0)
+        if two:
+            side = np.where(hi - x <= tolerance, 1, side)
+        contacts[name] = side.astype(np.int8)
+    return contacts
 
 
 class DesignSolution(NamedTuple):
@@ -38,6 +68,11 @@ class DesignSolution(NamedTuple):
         grad_norm: final norm of the projected gradient in the design variables
             (with ``optimizer=``: of the gradient in the bound parameters ``r``).
         history: ``(max_steps,)`` loss at every iteration (NaN after stopping).
+        at_bound: free variable name -> ``int8`` array of its shape: ``-1`` where the
+            optimum lies on the lower bound, ``+1`` on the upper bound, ``0`` inside
+            (:func:`bound_contacts`). A counter-mass at 0 kg was removed; a position
+            on its bound means the bound, not the physics, stopped the optimiser:
+            widen it (``lower=``/``upper=``) or accept the compromise.
     """
 
     design: dict[str, Array]
@@ -51,6 +86,7 @@ class DesignSolution(NamedTuple):
     steps: Array
     grad_norm: Scalar
     history: Array
+    at_bound: dict[str, np.ndarray]
 
 
 def _solution(robot, result, after, before, problem, layout, lower, upper) -> DesignSolution:
@@ -84,4 +120,11 @@ def _solution(robot, result, after, before, problem, layout, lower, upper) -> De
             np.linalg.norm(projected_gradient(result.x, result.grad, lower, upper))
         ),
         history=result.history,
+        at_bound=_contacts(optimised, problem),
     )
+
+
+def _contacts(optimised: Robot, problem) -> dict[str, np.ndarray]:
+    """:func:`bound_contacts` of the free variables of ``optimised``."""
+    design = optimised.design()
+    return bound_contacts(design, problem.free, problem.lower, problem.upper, problem.two_sided)

@@ -52,6 +52,7 @@ from jaxbal._src.design_loss import (
     _values,
     given_or,
 )
+from jaxbal._src.design_solution import _contacts, bound_contacts
 from jaxbal._src.lbfgs import lbfgs
 from jaxbal._src.metrics import Motion, check_design_names, metric_name, resolve_metric
 from jaxbal._src.momentum import check_robot, replayed
@@ -80,7 +81,10 @@ class JointSolution(NamedTuple):
         metrics: name -> ``(before, after)`` aggregated value over the payloads [SI].
         constraints: name -> ``(worst value over payloads, bound)`` after [SI].
         feasible: every constraint satisfied within :data:`FEASIBILITY_RTOL`.
-        converged, steps, grad_norm, history: as :class:`jaxbal.design.DesignSolution`.
+        converged, steps, grad_norm, history, at_bound: as
+            :class:`jaxbal.design.DesignSolution` (``at_bound``: the design variables).
+        trajectory_at_bound: ``at_bound`` of the trajectory variables (e.g. a move
+            time on its lower bound: the fastest move allowed was chosen).
     """
 
     design: dict[str, Array]
@@ -95,6 +99,8 @@ class JointSolution(NamedTuple):
     steps: Array
     grad_norm: Scalar
     history: Array
+    at_bound: dict[str, np.ndarray]
+    trajectory_at_bound: dict[str, np.ndarray]
 
 
 class _Joint(eqx.Module):
@@ -375,6 +381,14 @@ def joint_codesign(
         steps=np.asarray(steps),
         grad_norm=np.asarray(grad_norm),
         history=np.asarray(history),
+        at_bound=_contacts(optimised, problem),
+        trajectory_at_bound=bound_contacts(
+            theta,
+            theta_problem.free,
+            theta_problem.lower,
+            theta_problem.upper,
+            theta_problem.two_sided,
+        ),  # fmt: skip
     )
 
 

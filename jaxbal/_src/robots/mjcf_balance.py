@@ -166,11 +166,25 @@ def _peaks(robot, motion):
     return peak_force(robot, motion), peak_moment(robot, motion)
 
 
+def _clipped(robot: MjcfRobot, free, lower, upper) -> MjcfRobot:
+    """``robot`` with its free design variables moved into the bounds (``lower`` over
+    the robot's own lower bounds, ``upper`` if given): the start of :func:`balance`."""
+    design, bounds = robot.design(), {**robot.design_lower_bounds(), **(lower or {})}
+    moved = {}
+    for name in free:
+        if name in design:
+            high = (upper or {}).get(name, np.inf)
+            moved[name] = np.clip(np.asarray(design[name]), bounds.get(name, -np.inf), high)
+    return robot.with_design(moved)
+
+
 def balance(
     robot: MjcfRobot,
     motion: Motion,
     *,
     free=("counter_position",),
+    lower=None,
+    upper=None,
     max_steps: int = 200,
     gtol: float = 1e-14,
 ) -> Balance:
@@ -182,6 +196,11 @@ def balance(
         free: design variables to optimise (default: the positions only, masses kept;
             the force is then linear in the positions, so a force-balanceable
             mechanism converges to a residual near round-off).
+        lower, upper: bounds by name, as in :func:`~jaxbal.design.codesign` (default:
+            masses ≥ 0, positions ≥ −:meth:`~MjcfRobot.position_bound` per
+            coordinate); ``solution.at_bound`` tells which the optimum reached. The
+            robot's counter-masses are only the start: one outside these bounds is
+            moved onto them.
         max_steps, gtol: L-BFGS iteration cap and gradient tolerance.
 
     Returns:
@@ -192,7 +211,11 @@ def balance(
     bare = robot.with_design({"counter_mass": jnp.zeros_like(robot.counter_mass)})
     unbalanced = [float(v) for v in checked_call(_peaks, bare, motion)]
     before = [float(v) for v in checked_call(_peaks, robot, motion)]
-    solution = codesign(robot, motion, "rms_force", free=free, max_steps=max_steps, gtol=gtol)
+    robot = _clipped(robot, free, lower, upper)
+    solution = codesign(
+        robot, motion, "rms_force", free=free, lower=lower, upper=upper,
+        max_steps=max_steps, gtol=gtol,
+    )  # fmt: skip
     after = [float(v) for v in checked_call(_peaks, solution.robot, motion)]
     return Balance(
         robot=solution.robot,
