@@ -28,6 +28,7 @@ import jaxbal
 from jaxbal import robots
 from jaxbal.design import peak_force
 from jaxbal.mujoco import confirm, export_mjcf
+from jaxbal.profiles import Quintic
 from jaxbal.robots import add_counter_mass, from_mjcf, from_urdf
 from jaxbal.robots.mjcf_balancing import closure_samples, pose_samples
 
@@ -748,6 +749,31 @@ def test_keyframe_reference_and_a_singular_start_named_with_its_remedies():
     start = robot.end_effector(jnp.array([0.3, 0.2]))
     with pytest.raises(ValueError, match="singular configuration of the pose tip.x, tip.y"):
         pose_samples(robot, start, start + 0.01, 0.1, 5)
+
+
+def test_a_singular_start_names_a_regular_ik_free_choice():
+    """A planar 3-joint arm whose first two hinges are coaxial, its pose the tip and
+    (default) j3: with j3 given, j1 and j2 only move the tip through their sum, so the
+    pose equations are singular at every configuration; the error names a regular
+    choice (j2; j1 would do too), with which the same move is followed exactly."""
+    third = (
+        '<body name="l3" pos="0.2 0 0"><joint name="j3" axis="0 0 1"/>'
+        '<inertial pos="0.1 0 0" mass="1" diaginertia="1e-3 1e-2 1e-2"/>'
+        '<site name="tip" pos="0.2 0 0"/></body>'
+    )
+    key = '<keyframe><key name="bent" qpos="0.3 0.2 0.5"/></keyframe>'
+    xml = _arm(key, inside=third).replace('<body name="l2" pos="0.2 0 0">', '<body name="l2">')
+    robot = from_mjcf(xml, end_effector_site="tip", keyframe="bent")
+    assert robot.pose_labels() == ("tip.x", "tip.y", "j3")
+    start = robot.end_effector(robot.reference)
+    with pytest.raises(ValueError, match=r"e\.g\. ik_free=\('j2',\) \(--ik-free j2\)"):
+        pose_samples(robot, start, start - 0.01, 0.1, 5)
+    regular = from_mjcf(xml, end_effector_site="tip", keyframe="bent", ik_free=["j2"])
+    start = regular.end_effector(regular.reference)
+    motion = pose_samples(regular, start, start - 0.01, 0.1, 5)
+    reached = jax.vmap(regular.end_effector)(motion.q)
+    line = start - 0.01 * np.asarray(Quintic()(np.linspace(0.0, 1.0, 5)))[:, None]
+    np.testing.assert_allclose(reached, line, atol=1e-12)
 
 
 def test_four_bar_tree_on_a_fixed_frame_with_a_world_connect():

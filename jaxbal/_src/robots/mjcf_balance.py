@@ -24,6 +24,7 @@ References:
 
 from __future__ import annotations
 
+import itertools
 from typing import NamedTuple
 
 import jax
@@ -75,20 +76,56 @@ def _samples(states, times, what: str, hint: str = "") -> Motion:
     return Motion(q, q_d, q_dd)
 
 
+#: the pose equations count as singular where σ_min ≤ SINGULAR_RTOL·σ_max of their Jacobian.
+SINGULAR_RTOL = 1e-9
+#: at most this many ``ik_free`` choices are tried for a regular one (7-joint arm: 35).
+MAX_IK_FREE_CHOICES = 2000
+
+
+def _regular(jacobian: np.ndarray) -> bool:
+    singular = np.linalg.svd(jacobian, compute_uv=False)
+    return bool(singular[-1] > SINGULAR_RTOL * singular[0])
+
+
+def _regular_ik_free(robot: MjcfRobot, jacobian: np.ndarray) -> tuple[str, ...] | None:
+    """Joint names for ``ik_free`` (as many as the robot's) under which the pose
+    equations are regular at the reference, ``None`` if none: the rows of the closures
+    and of the site's coordinates, ``jacobian`` ``(r, dof)``, with a unit row per free
+    joint, tried from the last joints first (the default's order)."""
+    count = len(robot.ik_free)
+    kept = jacobian[: jacobian.shape[0] - count]
+    candidates = [
+        i for i in reversed(robot.independent_coordinates) if i in robot.joint_qpos
+    ]  # hinge and slide joints only (one coordinate each)
+    for k, free in enumerate(itertools.combinations(candidates, count)):
+        if k >= MAX_IK_FREE_CHOICES:
+            break
+        rows = np.zeros((count, jacobian.shape[1]))
+        rows[np.arange(count), list(free)] = 1.0
+        if _regular(np.vstack([kept, rows])):
+            return tuple(robot.joint_names[robot.joint_qpos.index(i)] for i in sorted(free))
+    return None
+
+
 def _singular_start(robot: MjcfRobot) -> str:
     """A hint when the Jacobian of the pose equations (loop closures, then the pose) is
     singular at the robot's ``reference``, where every solve of a move starts: e.g. a
     7-joint arm whose pose is its site's position and its last four joints, drawn with
-    its first and third axes aligned."""
+    its first and third axes aligned. Names a regular ``ik_free`` choice if one exists."""
     jacobian = np.asarray(jax.jacfwd(lambda q: pose_equations(robot, q))(robot.reference))
-    singular = np.linalg.svd(jacobian, compute_uv=False)
-    if singular[-1] > 1e-9 * singular[0]:
+    if _regular(jacobian):
         return ""
+    remedy = "complete the pose with other joints (ik_free=, --ik-free)"
+    choice = _regular_ik_free(robot, jacobian) if robot.ik_free else None
+    if choice is not None:
+        remedy = (
+            f"complete the pose with other joints, e.g. ik_free={choice!r} "
+            f"(--ik-free {','.join(choice)}), regular there"
+        )
     return (
         f" (the start, the reference q = {np.asarray(robot.reference).round(6).tolist()}, "
         f"is a singular configuration of the pose {', '.join(robot.pose_labels())}: start "
-        "from another keyframe (keyframe=, --keyframe) or complete the pose with other "
-        "joints (ik_free=, --ik-free))"
+        f"from another keyframe (keyframe=, --keyframe) or {remedy})"
     )
 
 
