@@ -86,7 +86,9 @@ _BALANCE_HELP = (
     "least RMS shaking force (jaxbal.design.codesign, the motion held fixed) and prints the "
     "design and the peaks after. With --conditions it also prints the linear conditions on "
     "the bodies' lumped inertial parameters under which the shaking force vanishes along "
-    "the move (jaxbal.balancing.balancing_conditions) and how far the design is from them."
+    "the move (jaxbal.balancing.balancing_conditions) and how far the design is from them. "
+    "A URDF has no sites: name the end-effector link with --body (and --offset); a file "
+    "whose mesh files are not at hand loads with --ignore-meshes."
     "\n\n"
     "Example: jaxbal balance five_bar.xml --actuated a,b --site tip "
     "--start -0.05,0.35 --end 0.05,0.4 --duration 0.3"
@@ -106,6 +108,15 @@ def balance(
         None, "--independent", help="independent joints (default: the actuated ones)"
     ),
     site: str = typer.Option(None, "--site", help="end-effector site (default: the only site)"),
+    body: str = typer.Option(
+        None, "--body", help="end-effector body or URDF link instead of a site (its origin)"
+    ),
+    offset: str = typer.Option(
+        None, "--offset", help="end-effector point in the --body frame, e.g. 0,0,0.1 (m)"
+    ),
+    ignore_meshes: bool = typer.Option(
+        False, "--ignore-meshes", help="leave mesh geoms out (mesh files not at hand)"
+    ),
     samples: int = typer.Option(101, "--samples", help="instants sampled on [0, T]"),
     counter_bodies: str = typer.Option(
         None, "--counter-bodies", help="bodies given a counter-mass (default: all moving bodies)"
@@ -148,6 +159,9 @@ def balance(
             actuated=actuated,
             independent=independent,
             end_effector_site=site,
+            end_effector_body=body,
+            end_effector_offset=None if offset is None else _floats(offset, "--offset"),
+            ignore_meshes=ignore_meshes,
             ignore_armature=ignore_armature,
             keyframe=keyframe,
             ik_free=ik_free,

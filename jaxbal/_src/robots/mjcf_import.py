@@ -17,8 +17,9 @@ from collections.abc import Sequence
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.robots.mjcf_parse import load_model, moving_components, parse
+from jaxbal._src.robots.mjcf_parse import moving_components, parse
 from jaxbal._src.robots.mjcf_robot import MjcfRobot
+from jaxbal._src.robots.mjcf_spec import compile_model
 
 __all__ = ["from_mjcf", "from_urdf"]
 
@@ -79,6 +80,9 @@ def from_mjcf(
     payload_body: str | None = None,
     ignore_armature: bool = False,
     keyframe: str | None = None,
+    end_effector_body: str | None = None,
+    end_effector_offset=None,
+    ignore_meshes: bool = False,
 ) -> MjcfRobot:
     """A jaxbal robot from an MJCF (or URDF) mechanism: XML text, a path or an ``MjModel``.
 
@@ -102,6 +106,12 @@ def from_mjcf(
         keyframe: a ``<key>`` of the model whose ``qpos`` is the robot's ``reference``,
             the start of its Newton solves (picks the assembly mode; default: the
             model's ``qpos0``, often an arm drawn straight, a singular configuration).
+        end_effector_body: instead of a site, a body (a URDF link, fused or not) whose
+            origin, plus ``end_effector_offset`` ``(3,)`` [m] in its frame, is the
+            end-effector point (a site of that name is added).
+        ignore_meshes: leave mesh geoms and assets out (mesh files not at hand): the
+            inertias come from the ``<inertial>`` elements
+            (:mod:`~jaxbal._src.robots.mjcf_spec`).
 
     Returns:
         An :class:`~jaxbal._src.robots.mjcf_robot.MjcfRobot`.
@@ -110,7 +120,15 @@ def from_mjcf(
         ValueError: a file MuJoCo cannot compile, an unsupported element (named), an
             unknown or unsuitable name (the message lists the valid ones).
     """
-    model = load_model(source)
+    if end_effector_body is not None and end_effector_site is not None:
+        raise ValueError("give end_effector_site or end_effector_body, not both")
+    model, added = compile_model(
+        source,
+        ignore_meshes=ignore_meshes,
+        end_effector_body=end_effector_body,
+        end_effector_offset=end_effector_offset,
+    )
+    end_effector_site = added or end_effector_site
     parsed = parse(model, ignore_armature=ignore_armature)
     moving = tuple(i for i, m in enumerate(parsed.moving) if m)
     kinds = zip(parsed.joint_names, parsed.joint_types, strict=True)
@@ -211,7 +229,10 @@ def from_urdf(source, **options) -> MjcfRobot:
     """A jaxbal robot from a URDF (text or path), through MuJoCo's URDF compiler.
 
     MuJoCo fuses links joined by fixed joints (its ``fusestatic`` default for URDF) and
-    fixes the root link to the world; ``options`` are those of :func:`from_mjcf`.
+    fixes the root link to the world; ``options`` are those of :func:`from_mjcf`. A URDF
+    has no sites: name the end-effector link with ``end_effector_body`` (e.g. a tool
+    link on a fixed joint; ``end_effector_offset`` for a point off its origin), and a
+    URDF whose mesh files are not at hand loads with ``ignore_meshes=True``.
 
     Raises:
         ValueError: text that is not a ``<robot>`` document, or as :func:`from_mjcf`.
