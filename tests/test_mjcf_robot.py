@@ -640,6 +640,27 @@ def test_counter_masses_and_design_variables():
         robot.with_body("extra", mass=1.0)
 
 
+def test_a_move_between_two_configurations_is_the_move_between_their_poses(five_bar):
+    """configuration_samples between the five-bar's first and last configurations of
+    the fixture's move (given by the independent cranks, or by every coordinate) is that
+    move (the same line between the same poses: q, q̇, q̈ to 1e-9); a configuration of
+    the wrong length names the independent joints, one off its loops is refused."""
+    from jaxbal.robots.mjcf_balancing import configuration_samples
+
+    robot, motion = five_bar
+    cranks = np.asarray(robot.independent_coordinates)
+    for first, last in ((motion.q[0][cranks], motion.q[-1][cranks]), (motion.q[0], motion.q[-1])):
+        again = configuration_samples(robot, first, last, 0.25, 41)
+        for ours, theirs in zip(again, motion, strict=True):
+            np.testing.assert_allclose(ours, theirs, atol=1e-9)
+    with pytest.raises(
+        ValueError, match=r"start must be 4 finite .* 2 independent ones, \['a', 'b'\]"
+    ):
+        configuration_samples(robot, [0.1, 0.2, 0.3], motion.q[-1][cranks], 0.25, 5)
+    with pytest.raises(ValueError, match="end does not close the loops"):
+        configuration_samples(robot, motion.q[0], motion.q[-1] + 0.1, 0.25, 5)
+
+
 def test_balance_reports_the_bounds_it_reached(five_bar):
     """Counter positions boxed in ±2 cm (the start, outside, moved onto the box): the
     cranks' counter-masses need 0.5-1 m arms (unboxed optimum, interior: at_bound all

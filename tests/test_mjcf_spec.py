@@ -149,3 +149,8 @@ def test_cli_balances_a_urdf_arm_by_its_tool_link(tmp_path):
     assert peaks["balanced peak shaking force"] < 1e-9 * peaks["peak shaking force"]
     refused = runner.invoke(app, move)
     assert refused.exit_code == 2 and "--ignore-meshes" in refused.output
+    joints = [*move[:4], "--ignore-meshes", "--samples", "21", "--joints"]
+    between = runner.invoke(app, [*joints, "--start", "0.3,0.8", "--end", "1.2,0.6"])
+    assert between.exit_code == 0, between.output
+    flipped = runner.invoke(app, [*joints, "--start", "0.3,0.8", "--end", "1.4,-0.8"])
+    assert flipped.exit_code == 2 and "not in end's assembly mode" in flipped.output

@@ -88,7 +88,9 @@ _BALANCE_HELP = (
     "the bodies' lumped inertial parameters under which the shaking force vanishes along "
     "the move (jaxbal.balancing.balancing_conditions) and how far the design is from them. "
     "A URDF has no sites: name the end-effector link with --body (and --offset); a file "
-    "whose mesh files are not at hand loads with --ignore-meshes."
+    "whose mesh files are not at hand loads with --ignore-meshes. With --joints, START and "
+    "END are joint configurations (every coordinate, or a closed chain's independent ones): "
+    "the tool moves on the straight line between their poses, starting from START."
     "\n\n"
     "Example: jaxbal balance five_bar.xml --actuated a,b --site tip "
     "--start -0.05,0.35 --end 0.05,0.4 --duration 0.3"
@@ -147,10 +149,20 @@ def balance(
         "--position-bound",
         help="counter positions within ±B per coordinate (m; default: ≥ −10× the size)",
     ),
+    joints: bool = typer.Option(
+        False,
+        "--joints",
+        help="--start and --end are joint configurations (rad, m): the tool moves on the "
+        "straight line between their poses",
+    ),
 ):
     """Shaking-force peaks of a move of ROBOT and a force-balancing counter-mass design."""
     from jaxbal._src.robots.mjcf_balance import balance as codesign_counter_masses
-    from jaxbal._src.robots.mjcf_balance import pose_samples, with_counter_masses
+    from jaxbal._src.robots.mjcf_balance import (
+        configuration_samples,
+        pose_samples,
+        with_counter_masses,
+    )
     from jaxbal._src.robots.mjcf_import import from_mjcf
 
     try:
@@ -166,7 +178,8 @@ def balance(
             keyframe=keyframe,
             ik_free=ik_free,
         )
-        motion = pose_samples(
+        sample = configuration_samples if joints else pose_samples
+        motion = sample(
             mechanism, _floats(start, "--start"), _floats(end, "--end"), duration, samples
         )
         bodies = None if counter_bodies is None else counter_bodies.split(",")

@@ -40,7 +40,15 @@ from jaxbal._src.robots.mjcf_solve import pose_equations
 from jaxbal._src.trajectory import StraightLine, sample, sample_times
 from jaxbal._src.validation import checked_call, raise_if_invalid
 
-__all__ = ["Balance", "balance", "closure_samples", "pose_samples", "with_counter_masses"]
+__all__ = [
+    "CONFIGURATION_ATOL",
+    "Balance",
+    "balance",
+    "closure_samples",
+    "configuration_samples",
+    "pose_samples",
+    "with_counter_masses",
+]
 
 
 def _continued(solve, start, inputs):
@@ -150,6 +158,68 @@ def pose_samples(robot: MjcfRobot, start, end, duration, count: int = 101, profi
     states = checked_call(_pose_states, robot, line, times)
     hint = "" if bool(np.all(np.asarray(states[3]))) else _singular_start(robot)
     return _samples(states, times, "end-effector line", hint)
+
+
+#: a configuration's loop closures count as met within this [m]; a move ends in the
+#: configuration asked for within this [rad, m] (else another assembly mode was followed).
+CONFIGURATION_ATOL = 1e-9
+
+
+def _configuration(robot: MjcfRobot, q, what: str) -> jnp.ndarray:
+    """All coordinates ``(dof,)`` from ``q``: every coordinate, or (closed chain) the
+    independent ones, closed by Newton from the robot's reference."""
+    q = np.asarray(q, dtype=float)
+    independent = len(robot.independent_coordinates)
+    if q.ndim != 1 or q.size not in (robot.dof, independent) or not np.all(np.isfinite(q)):
+        names = [
+            robot.joint_names[robot.joint_qpos.index(i)] for i in robot.independent_coordinates
+        ]
+        raise ValueError(
+            f"{what} must be {robot.dof} finite coordinates (or the {independent} independent "
+            f"ones, {names}), got {q.tolist()}"
+        )
+    if q.size != robot.dof:
+        q = np.asarray(robot.closure(jnp.asarray(q)))
+    residual = float(np.max(np.abs(np.asarray(robot.constraint(jnp.asarray(q)))), initial=0.0))
+    if residual > CONFIGURATION_ATOL:
+        raise ValueError(f"{what} does not close the loops: |Φ| = {residual:.3g} m at q = {q}")
+    return jnp.asarray(q)
+
+
+def configuration_samples(
+    robot: MjcfRobot, start, end, duration, count: int = 101, profile=None
+) -> Motion:
+    """Exact joint motion of the straight end-effector move between two configurations.
+
+    The poses are those of ``start`` and ``end`` (:meth:`~MjcfRobot.end_effector`,
+    ``ik_free`` joints included), the Newton solves start from ``start`` (so no
+    reference or keyframe is needed), and the move must arrive in ``end`` itself.
+
+    Args:
+        robot: an :class:`~jaxbal._src.robots.mjcf_robot.MjcfRobot` with a site.
+        start, end: ``(dof,)`` configurations, or for a closed chain the independent
+            coordinates [rad, m].
+        duration, count, profile: as :func:`pose_samples`.
+
+    Raises:
+        ValueError: a configuration of the wrong length, non-finite or off its loop
+            closures; a move that leaves the reach; or one that arrives in another
+            assembly mode than ``end`` (the difference named).
+    """
+    first, last = _configuration(robot, start, "start"), _configuration(robot, end, "end")
+    robot = robot.with_reference(first)
+    motion = pose_samples(
+        robot, robot.end_effector(first), robot.end_effector(last), duration, count, profile
+    )
+    gap = np.abs(np.asarray(motion.q[-1]) - np.asarray(last))
+    if float(gap.max(initial=0.0)) > CONFIGURATION_ATOL:
+        raise ValueError(
+            f"the straight move from start's pose to end's arrives at q = "
+            f"{np.asarray(motion.q[-1]).round(6).tolist()}, not in end's assembly mode "
+            f"({np.asarray(last).round(6).tolist()}; largest difference {gap.max():.3g}): "
+            "choose end in the mode start leads to, or other ik_free joints"
+        )
+    return motion
 
 
 def closure_samples(robot: MjcfRobot, start, end, duration, count: int = 101, profile=None):
