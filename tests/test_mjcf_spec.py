@@ -139,7 +139,7 @@ def test_cli_balances_a_urdf_arm_by_its_tool_link(tmp_path):
     path.write_text(URDF)
     move = ["balance", str(path), "--body", "tool", "--start", "0.45,0.1", "--end", "0.3,0.3"]
     runner = CliRunner()
-    result = runner.invoke(app, [*move, "--ignore-meshes", "--samples", "21"])
+    result = runner.invoke(app, [*move, "--ignore-meshes", "--samples", "11"])
     assert result.exit_code == 0, result.output
     peaks = {}
     for line in result.output.splitlines():
@@ -149,8 +149,43 @@ def test_cli_balances_a_urdf_arm_by_its_tool_link(tmp_path):
     assert peaks["balanced peak shaking force"] < 1e-9 * peaks["peak shaking force"]
     refused = runner.invoke(app, move)
     assert refused.exit_code == 2 and "--ignore-meshes" in refused.output
-    joints = [*move[:4], "--ignore-meshes", "--samples", "21", "--joints"]
+    joints = [*move[:4], "--ignore-meshes", "--samples", "11", "--joints"]
     between = runner.invoke(app, [*joints, "--start", "0.3,0.8", "--end", "1.2,0.6"])
     assert between.exit_code == 0, between.output
     flipped = runner.invoke(app, [*joints, "--start", "0.3,0.8", "--end", "1.4,-0.8"])
     assert flipped.exit_code == 2 and "not in end's assembly mode" in flipped.output
+    negative = runner.invoke(app, [*joints, "--start", "0.3,0.8", "--end", "1.2,0.6",
+                                   "--moment-weight", "-1"])  # fmt: skip
+    assert negative.exit_code == 2 and "--moment-weight must be finite and >= 0" in negative.output
+
+
+def _numbers(output: str, *keys: str) -> dict[str, float]:
+    found = {}
+    for line in output.splitlines():
+        for key in keys:
+            if line.strip().startswith(key + " "):
+                found[key] = float(line.split()[-2])
+    return found
+
+
+@pytest.mark.slow
+def test_cli_trades_force_for_moment_and_added_mass(tmp_path):
+    """``--moment-weight`` (and ``--mass-weight``) with ``--free-masses``: the 2R's
+    counter-masses then lower the peak shaking moment below the force-balanced design's
+    (by more than half) for a bit of force; ``--mass-weight`` lowers the added mass."""
+    from jaxbal._src.cli import app
+
+    path = tmp_path / "arm.urdf"
+    path.write_text(URDF)
+    move = ["balance", str(path), "--body", "tool", "--ignore-meshes", "--joints", "--start",
+            "0.3,0.8", "--end", "1.2,0.6", "--duration", "0.3", "--samples", "31",
+            "--free-masses"]  # fmt: skip
+    keys = ("balanced peak shaking force", "balanced peak shaking moment", "added mass")
+    runner = CliRunner()
+    weights = ([], ["--moment-weight", "0.3"], ["--moment-weight", "0.3", "--mass-weight", "1"])
+    runs = [runner.invoke(app, [*move, *extra]) for extra in weights]
+    assert all(run.exit_code == 0 for run in runs), [run.output for run in runs]
+    force_only, moment, lighter = (_numbers(run.output, *keys) for run in runs)
+    assert force_only["balanced peak shaking force"] < 1e-9
+    assert moment["balanced peak shaking moment"] < 0.5 * force_only["balanced peak shaking moment"]
+    assert lighter["added mass"] < moment["added mass"]

@@ -149,6 +149,18 @@ def balance(
         "--position-bound",
         help="counter positions within ±B per coordinate (m; default: ≥ −10× the size)",
     ),
+    moment_weight: float = typer.Option(
+        0.0,
+        "--moment-weight",
+        help="also lower the RMS shaking moment, with this weight against the force "
+        "(each relative to its value at the start)",
+    ),
+    mass_weight: float = typer.Option(
+        0.0,
+        "--mass-weight",
+        help="weight of the added mass (relative to the robot's mass) against the force; "
+        "with --free-masses",
+    ),
     joints: bool = typer.Option(
         False,
         "--joints",
@@ -166,6 +178,7 @@ def balance(
     from jaxbal._src.robots.mjcf_import import from_mjcf
 
     try:
+        objective = _objective(moment_weight, mass_weight)
         mechanism = from_mjcf(
             robot,
             actuated=actuated,
@@ -191,7 +204,9 @@ def balance(
                 "lower": {"counter_position": -position_bound},
                 "upper": {"counter_position": position_bound},
             }
-        result = codesign_counter_masses(start_design, motion, free=free, **bounds)
+        result = codesign_counter_masses(
+            start_design, motion, free=free, objective=objective, **bounds
+        )
     except ValueError as error:
         typer.echo(f"error: {error}", err=True)
         raise typer.Exit(code=2) from None
@@ -207,9 +222,12 @@ def balance(
         where = f"({x:.6g}, {y:.6g}, {z:.6g})"
         typer.echo(f"  {name:16s} {mass:10.6g} kg at {where}{_flags(result, k)}")
     typer.echo(f"  added mass {float(np.sum(design['counter_mass'])):.6g} kg")
-    if any(np.any(side) for side in result.solution.at_bound.values()):
+    contacts = result.solution.at_bound
+    if np.any(contacts.get("counter_position", 0)):
         typer.echo("  [!] on a bound: the bound, not the physics, stopped the optimiser there")
-        typer.echo("      (widen --position-bound); a mass on 0 kg was removed")
+        typer.echo("      (widen --position-bound)")
+    if np.any(contacts.get("counter_mass", 0)):
+        typer.echo("  [!] 0 kg: the optimiser removed that counter-mass")
     typer.echo(f"balanced peak shaking force  {result.peak_force[1]:.6g} N")
     typer.echo(f"balanced peak shaking moment {result.peak_moment[1]:.6g} N·m")
     if result.peak_force[1] > result.unbalanced_peak_force:
@@ -227,6 +245,18 @@ def balance(
             typer.echo(f"  {equation}")
         residual = float(np.max(np.abs(found.residuals(result.robot)), initial=0.0))
         typer.echo(f"largest residual of the design {residual:.3g}")
+
+
+def _objective(moment_weight: float, mass_weight: float):
+    """The co-design objective of ``jaxbal balance``: the RMS shaking force, plus the
+    RMS moment and the added mass with these weights (each metric relative to its value
+    at the start, the added mass to the robot's mass: jaxbal.design.codesign)."""
+    for option, weight in (("--moment-weight", moment_weight), ("--mass-weight", mass_weight)):
+        if not (np.isfinite(weight) and weight >= 0.0):
+            raise ValueError(f"{option} must be finite and >= 0, got {weight}")
+    objective = {"rms_force": 1.0, "rms_moment": moment_weight, "added_mass": mass_weight}
+    objective = {name: w for name, w in objective.items() if w}
+    return "rms_force" if list(objective) == ["rms_force"] else objective
 
 
 def _flags(result, k: int) -> str:

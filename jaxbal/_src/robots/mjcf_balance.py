@@ -292,6 +292,7 @@ def balance(
     free=("counter_position",),
     lower=None,
     upper=None,
+    objective="rms_force",
     max_steps: int = 200,
     gtol: float = 1e-14,
 ) -> Balance:
@@ -308,6 +309,9 @@ def balance(
             coordinate); ``solution.at_bound`` tells which the optimum reached. The
             robot's counter-masses are only the start: one outside these bounds is
             moved onto them.
+        objective: as :func:`~jaxbal.design.codesign`'s (default the RMS shaking
+            force); e.g. ``{"rms_force": 1.0, "rms_moment": w}`` trades the force for
+            the moment, each relative to its value at the start.
         max_steps, gtol: L-BFGS iteration cap and gradient tolerance.
 
     Returns:
@@ -320,7 +324,7 @@ def balance(
     before = [float(v) for v in checked_call(_peaks, robot, motion)]
     robot = _clipped(robot, free, lower, upper)
     solution = codesign(
-        robot, motion, "rms_force", free=free, lower=lower, upper=upper,
+        robot, motion, objective, free=free, lower=lower, upper=upper,
         max_steps=max_steps, gtol=gtol,
     )  # fmt: skip
     after = [float(v) for v in checked_call(_peaks, solution.robot, motion)]
