@@ -10,6 +10,8 @@ model's own ``connect`` equalities, with MuJoCo's kinematics only:
 * positions: Newton on the residual ``r(qpos) = Σ_k x_site1,k − x_site2,k`` (site
   positions from ``mj_kinematics``), Jacobian ``mj_jacSite``, minimum-norm steps over
   the solved dofs, applied with ``mj_integratePos`` (ball joints stay unit quaternions);
+  a joint equality (gear, mimic) adds the row ``q1 − q1⁰ − p(q2 − q2⁰)`` of its
+  polynomial ``p`` (``eq_data``), Jacobian ``(1, −p')``, ``J̇ v = −p'' v2²``;
 * velocities: ``J_s v_s = −J_p v_p`` (minimum norm: a ball joint's spin about a bar's
   own axis, which the loops leave free, is zero);
 * accelerations: ``J_s a_s = −J_p a_p − J̇ v`` with ``J̇ v`` from ``mj_jacDot``
@@ -47,6 +49,9 @@ class ClosureIndex(NamedTuple):
         scalar_qpos: ``qpos`` indices of the solved hinge/slide joints.
         hinge: ``(len(scalar_qpos),)`` True for a hinge (an angle, compared modulo 2π).
         scale: the model's size [m] (for the tolerance).
+        couplings: ``(m, 4)`` ``qpos`` and dof addresses of each joint equality's
+            joint1 and joint2 (``-1`` without joint2).
+        polycoef: ``(m, 5)`` their polynomials; origins: ``(m, 2)`` their ``qpos0``.
     """
 
     sites: np.ndarray
@@ -55,6 +60,9 @@ class ClosureIndex(NamedTuple):
     scalar_qpos: np.ndarray
     hinge: np.ndarray
     scale: float
+    couplings: np.ndarray
+    polycoef: np.ndarray
+    origins: np.ndarray
 
 
 def closure_index(model: mujoco.MjModel, solved: tuple[str, ...]) -> ClosureIndex:
@@ -77,12 +85,20 @@ def closure_index(model: mujoco.MjModel, solved: tuple[str, ...]) -> ClosureInde
         if _DOFS[kind] == 1:
             scalar.append(int(model.jnt_qposadr[joint]))
             hinge.append(kind == "hinge")
-    sites = []
+    sites, couplings, polycoef, origins = [], [], [], []
     for k in range(model.neq):
+        if model.eq_type[k] == mujoco.mjtEq.mjEQ_JOINT:
+            pair = [int(model.eq_obj1id[k]), int(model.eq_obj2id[k])]
+            couplings.append([a for j in pair for a in _addresses(model, j)])
+            polycoef.append(np.array(model.eq_data[k, :5], dtype=float))
+            origins.append([model.qpos0[model.jnt_qposadr[j]] if j >= 0 else 0.0 for j in pair])
+            continue
         if model.eq_type[k] != mujoco.mjtEq.mjEQ_CONNECT or (
             model.eq_objtype[k] != mujoco.mjtObj.mjOBJ_SITE
         ):
-            raise ValueError(f"equality {k} is not a site-to-site connect; cannot close it")
+            raise ValueError(
+                f"equality {k} is not a site-to-site connect or a joint equality; cannot close it"
+            )
         sites.append((int(model.eq_obj1id[k]), int(model.eq_obj2id[k])))
     scale = max(float(model.stat.extent), 1e-3)
     return ClosureIndex(
@@ -92,7 +108,34 @@ def closure_index(model: mujoco.MjModel, solved: tuple[str, ...]) -> ClosureInde
         scalar_qpos=np.array(scalar, dtype=int),
         hinge=np.array(hinge, dtype=bool),
         scale=scale,
+        couplings=np.array(couplings, dtype=int).reshape(-1, 4),
+        polycoef=np.array(polycoef, dtype=float).reshape(-1, 5),
+        origins=np.array(origins, dtype=float).reshape(-1, 2),
     )
+
+
+def _addresses(model, joint: int) -> tuple[int, int]:
+    """``(qpos, dof)`` address of a hinge or slide joint, ``(-1, -1)`` for none."""
+    if joint < 0:
+        return -1, -1
+    return int(model.jnt_qposadr[joint]), int(model.jnt_dofadr[joint])
+
+
+def _couplings(model, qpos, index: ClosureIndex):
+    """``(r (m,), ∂r/∂v (m, nv), ∂²r/∂x² (m,))`` of the joint equalities at ``qpos``:
+    ``r = y − y⁰ − p(x − x⁰)`` (the last: ``−p''`` at joint2, for ``J̇ v``)."""
+    residual, jacobian, curvature = [], np.zeros((len(index.couplings), model.nv)), []
+    for k, (q1, d1, q2, d2) in enumerate(index.couplings):
+        a = index.polycoef[k]
+        x = qpos[q2] - index.origins[k, 1] if q2 >= 0 else 0.0
+        p = a[0] + x * (a[1] + x * (a[2] + x * (a[3] + x * a[4])))
+        slope = a[1] + x * (2 * a[2] + x * (3 * a[3] + x * 4 * a[4]))
+        residual.append(qpos[q1] - index.origins[k, 0] - p)
+        jacobian[k, d1] += 1.0
+        if d2 >= 0:
+            jacobian[k, d2] -= slope
+        curvature.append(-(2 * a[2] + x * (6 * a[3] + x * 12 * a[4])))
+    return np.array(residual), jacobian, np.array(curvature)
 
 
 def _residual_and_jacobian(model, data, index: ClosureIndex):
@@ -106,7 +149,10 @@ def _residual_and_jacobian(model, data, index: ClosureIndex):
         mujoco.mj_jacSite(model, data, jac2, None, s2)
         residual.append(data.site_xpos[s1] - data.site_xpos[s2])
         jacobian.append(jac1 - jac2)
-    return np.concatenate(residual), np.concatenate(jacobian)
+    coupled, rows, _ = _couplings(model, data.qpos, index)
+    return np.concatenate([*residual, coupled]), np.concatenate([*jacobian, rows]).reshape(
+        -1, model.nv
+    )
 
 
 def _bias(model, data, index: ClosureIndex) -> np.ndarray:
@@ -121,7 +167,9 @@ def _bias(model, data, index: ClosureIndex) -> np.ndarray:
             mujoco.mj_jacDot(model, data, jac_dot, None, data.site_xpos[site].copy(), body)
             rates.append(jac_dot @ data.qvel)
         rows.append(rates[0] - rates[1])
-    return np.concatenate(rows)
+    _, _, curvature = _couplings(model, data.qpos, index)
+    followed = np.array([data.qvel[d2] if d2 >= 0 else 0.0 for *_, d2 in index.couplings])
+    return np.concatenate([*rows, curvature * followed**2])
 
 
 def _solve(matrix, rhs, what: str) -> np.ndarray:

@@ -278,6 +278,15 @@ def to_mjcf(
             ET.SubElement(
                 equality, "connect", name=f"loop{k}", site1=sites[0], site2=sites[1], **CONNECT
             )
+    if tree.couplings:
+        equality = root.find("equality")
+        equality = ET.SubElement(root, "equality") if equality is None else equality
+        for k, c in enumerate(tree.couplings):
+            names = {"joint1": c.joint1} | ({"joint2": c.joint2} if c.joint2 else {})
+            ET.SubElement(
+                equality, "joint", name=f"coupling{k}", polycoef=_fmt(c.polycoef), **names,
+                **CONNECT,
+            )  # fmt: skip
     if tree.actuated:
         actuator = ET.SubElement(root, "actuator")
         for name in tree.actuated:

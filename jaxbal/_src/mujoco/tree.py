@@ -95,6 +95,20 @@ class Connect(NamedTuple):
     anchor2: tuple[float, float, float]
 
 
+class Coupling(NamedTuple):
+    """A joint ``equality`` (gear, belt, URDF mimic): ``q1 − q1⁰ = Σ_i a_i (q2 − q2⁰)^i``
+    (:mod:`jaxbal._src.robots.mjcf_couplings`).
+
+    Attributes:
+        joint1: the coupled joint; joint2: the one it follows (``None``: fixed).
+        polycoef: ``(a0, a1, a2, a3, a4)``.
+    """
+
+    joint1: str
+    joint2: str | None
+    polycoef: tuple[float, float, float, float, float]
+
+
 class Tree(NamedTuple):
     """Kinematic description of a robot for MuJoCo.
 
@@ -104,6 +118,7 @@ class Tree(NamedTuple):
             they appear in ``bodies``; any smooth JAX function (velocities and
             accelerations follow by forward-mode differentiation).
         connects: loop-closure constraints.
+        couplings: joint equalities (closed by MuJoCo C with the ``connects``).
         actuated: names of the actuated joints (motors in the MJCF), if known.
         independent: False for :func:`prescribed_tree`.
         state: optional ``(q, qd, qdd) -> (qpos, qvel, qacc)`` overriding the default
@@ -123,6 +138,7 @@ class Tree(NamedTuple):
     state: Callable | None = None
     solved: tuple[str, ...] = ()
     guess: Callable | None = None
+    couplings: tuple[Coupling, ...] = ()
 
     def joint_names(self) -> tuple[str, ...]:
         return tuple(j.name for b in self.bodies for j in b.joints)

@@ -89,9 +89,10 @@ def from_mjcf(
     Args:
         source: the model (see :func:`~jaxbal._src.robots.mjcf_parse.load_model`).
         actuated: the actuated joints (names, or ``"j1,j2"``); default: the joints that
-            carry ``<actuator>`` elements, or every hinge/slide of a serial mechanism.
+            carry ``<actuator>`` elements, or every hinge/slide of a serial mechanism
+            but the coupled ones (``joint1`` of a joint equality, a URDF mimic joint).
         independent: the independent joints; default: ``actuated`` for a closed chain
-            (connects), every hinge/slide for a serial mechanism. A redundantly actuated
+            (connects) or with couplings, every hinge/slide for a serial mechanism. A redundantly actuated
             mechanism (the DUAL-V) names fewer independent than actuated joints.
         end_effector_site: the site whose position is the end-effector pose (default:
             the model's only site, if it has exactly one).
@@ -134,6 +135,9 @@ def from_mjcf(
     kinds = zip(parsed.joint_names, parsed.joint_types, strict=True)
     hinges = tuple(name for name, kind in kinds if kind != "ball")
     closed = bool(parsed.connect_names)
+    coupled = {parsed.joint_names[j1] for j1, _ in parsed.couplings.joints}
+    if coupled:  # a coupled joint (gear, mimic) follows another: not independent
+        hinges = tuple(name for name in hinges if name not in coupled)
     actuated = _names(actuated)
     if actuated is None:
         actuated = parsed.motors or (None if closed else hinges)
@@ -145,7 +149,7 @@ def from_mjcf(
     actuated_q = _coordinates(parsed, actuated, "actuated")
     independent = _names(independent)
     if independent is None:
-        independent = actuated if closed else hinges
+        independent = actuated if closed or coupled else hinges
     independent_q = _coordinates(parsed, independent, "independent")
 
     site_body, site_pos, components, free = -1, np.zeros(3), (), ()
@@ -203,6 +207,7 @@ def from_mjcf(
         counter_mass=jnp.zeros(0),
         counter_position=jnp.zeros((0, 3)),
         counter_inertia=jnp.zeros((0, 3, 3)),
+        coupling_coef=jnp.asarray(parsed.couplings.coef),
         body_names=parsed.body_names,
         parents=parsed.parents,
         body_joints=body_joints,
@@ -213,6 +218,8 @@ def from_mjcf(
         connect_names=parsed.connect_names,
         connect_bodies=parsed.connect_bodies,
         closure_rows=parsed.closure_rows,
+        coupling_names=parsed.couplings.names,
+        coupling_joints=parsed.couplings.joints,
         site_name=end_effector_site,
         site_body=site_body,
         pose_components=components,

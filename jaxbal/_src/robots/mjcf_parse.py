@@ -26,10 +26,13 @@ References:
 
 from __future__ import annotations
 
+from functools import partial
 from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
+
+from jaxbal._src.robots.mjcf_couplings import Couplings, parse_couplings
 
 #: MuJoCo joint type codes (``mjtJoint``) -> jaxbal names.
 JOINT_TYPES = {0: "free", 1: "ball", 2: "slide", 3: "hinge"}
@@ -66,6 +69,7 @@ class Parsed(NamedTuple):
     anchor1: np.ndarray  # (c, 3) in body 1's frame [m]
     anchor2: np.ndarray  # (c, 3) in body 2's frame [m]
     closure_rows: tuple[tuple[tuple[float, float, float], ...], ...]
+    couplings: Couplings  # joint equalities (gears, URDF mimic joints)
     site_names: tuple[str, ...]
     site_body: tuple[int, ...]
     site_pos: np.ndarray  # (s, 3) in the body frame [m]
@@ -136,9 +140,14 @@ def _refuse_unsupported(model, ignore_armature: bool) -> None:
             )
     for e in range(model.neq):
         name = _name(model, "eq", e, "equality")
-        if int(model.eq_type[e]) != int(mujoco.mjtEq.mjEQ_CONNECT):
+        if int(model.eq_type[e]) not in (
+            int(mujoco.mjtEq.mjEQ_CONNECT),
+            int(mujoco.mjtEq.mjEQ_JOINT),
+        ):
             kind = mujoco.mjtEq(int(model.eq_type[e])).name.removeprefix("mjEQ_").lower()
-            raise ValueError(f"equality {name!r} of type {kind!r} is not supported (only connect)")
+            raise ValueError(
+                f"equality {name!r} of type {kind!r} is not supported (only connect and joint)"
+            )
         if not model.eq_active0[e]:
             raise ValueError(f"equality {name!r} is inactive; remove it or make it active")
     joint_transmissions = (int(mujoco.mjtTrn.mjTRN_JOINT), int(mujoco.mjtTrn.mjTRN_JOINTINPARENT))
@@ -305,6 +314,7 @@ def parse(model, ignore_armature: bool = False) -> Parsed:
         anchor1=np.array(anchors1, dtype=float).reshape(-1, 3),
         anchor2=np.array(anchors2, dtype=float).reshape(-1, 3),
         closure_rows=tuple(rows),
+        couplings=parse_couplings(model, partial(_name, model)),
         site_names=tuple(_name(model, "site", s, "site") for s in range(model.nsite)),
         site_body=tuple(body_index(b) for b in model.site_bodyid),
         site_pos=np.array(model.site_pos, dtype=float).reshape(-1, 3),

@@ -2,8 +2,8 @@
 
 :class:`MjcfRobot` satisfies the whole robot contract (:class:`jaxbal.Robot`) for any
 tree of hinge, slide and ball joints on a fixed base, closed by ``connect`` equalities.
-It is built by :func:`~jaxbal._src.robots.mjcf_import.from_mjcf` (the structure comes
-from MuJoCo's compiler, :mod:`~jaxbal._src.robots.mjcf_parse`).
+Built by :func:`~jaxbal._src.robots.mjcf_import.from_mjcf` (structure from MuJoCo's
+compiler, :mod:`~jaxbal._src.robots.mjcf_parse`).
 
 Coordinates ``q`` are MuJoCo's ``qpos``: hinge angles [rad], slide displacements [m]
 and ball quaternions ``(w, x, y, z)``, in MuJoCo's order (``robot.coordinate(name)``
@@ -11,8 +11,10 @@ gives a joint's index). Closed chains: the loop closures ``Φ(q)`` stack, per
 ``connect``, the world difference of its two anchors (only along the directions in
 which the anchors can move: a planar mechanism in the x-y plane keeps the x and y rows,
 see :func:`~jaxbal._src.robots.mjcf_parse.fixed_directions`), then ``|Q|² − 1`` per
-ball joint. The independent coordinates (default: the actuated joints) fix the others
-through :meth:`MjcfRobot.closure`, a Newton solve differentiated implicitly.
+ball joint, then one row per joint coupling (gear, URDF mimic:
+:mod:`~jaxbal._src.robots.mjcf_couplings`). The independent coordinates (default: the
+actuated joints) fix the others through :meth:`MjcfRobot.closure`, a Newton solve
+differentiated implicitly.
 
 The end-effector pose is the position of a named site (the components
 ``pose_components``, e.g. ``(0, 1)`` for a planar mechanism) followed by the values of
@@ -42,6 +44,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.robot import Bodies, Robot
+from jaxbal._src.robots.mjcf_couplings import coupling_residuals
 from jaxbal._src.robots.mjcf_kinematics import point_in_world, world_frames
 from jaxbal._src.robots.mjcf_solve import closure, closure_motion, inverse_kinematics, pose_motion
 from jaxbal._src.robots.mjcf_tree import mjcf_tree
@@ -63,6 +66,7 @@ class MjcfRobot(Robot):
         joint_axis, joint_pos, joint_ref: ``(nj, 3)`` unit axes, ``(nj, 3)`` anchors
             [m] in the body frame, ``(nj,)`` ``ref`` values [rad or m].
         anchor1, anchor2: ``(c, 3)`` connect anchors in their bodies' frames [m].
+        coupling_coef: ``(e, 5)`` polynomials of the ``e`` joint couplings.
         site_pos: ``(3,)`` end-effector site in its body frame [m].
         reference: ``(dof,)`` Newton's default start for IK and closure (``qpos0``).
         counter_mass, counter_position, counter_inertia: ``(k,)`` [kg], ``(k, 3)`` in
@@ -95,6 +99,7 @@ class MjcfRobot(Robot):
     counter_mass: Float[Array, " k"]
     counter_position: Float[Array, "k 3"]
     counter_inertia: Float[Array, "k 3 3"]
+    coupling_coef: Float[Array, "e 5"]
     body_names: tuple[str, ...] = eqx.field(static=True)
     parents: tuple[int, ...] = eqx.field(static=True)
     body_joints: tuple[tuple[int, ...], ...] = eqx.field(static=True)
@@ -105,6 +110,8 @@ class MjcfRobot(Robot):
     connect_names: tuple[str, ...] = eqx.field(static=True)
     connect_bodies: tuple[tuple[int, int], ...] = eqx.field(static=True)
     closure_rows: tuple[tuple[tuple[float, float, float], ...], ...] = eqx.field(static=True)
+    coupling_names: tuple[str, ...] = eqx.field(static=True)
+    coupling_joints: tuple[tuple[int, int], ...] = eqx.field(static=True)
     site_name: str | None = eqx.field(static=True)
     site_body: int = eqx.field(static=True)
     pose_components: tuple[int, ...] = eqx.field(static=True)
@@ -130,6 +137,7 @@ class MjcfRobot(Robot):
             "joint_ref": (nj,),
             "anchor1": (c, 3),
             "anchor2": (c, 3),
+            "coupling_coef": (len(self.coupling_names), 5),
             "site_pos": (3,),
             "counter_mass": (k,),
             "counter_position": (k, 3),
@@ -138,8 +146,7 @@ class MjcfRobot(Robot):
         for name, shape in shapes.items():
             check_shape(f"MjcfRobot.{name}", getattr(self, name), shape)
         check_shape("MjcfRobot.reference", self.reference, (None,))
-        names = self.mass_names()
-        if len(set(names)) != len(names):
+        if len(set(names := self.mass_names())) != len(names):
             raise ValueError(f"body and counter-mass names must be unique, got {names}")
 
     # --- structure ------------------------------------------------------------------
@@ -202,9 +209,7 @@ class MjcfRobot(Robot):
             raise ValueError(f"{name!r} is a counter-mass: change it with with_design")
         robot = self
         changes = (("mass", mass, ()), ("com", com, (3,)), ("inertia", inertia, (3, 3)))
-        for field, value, shape in changes:
-            if value is None:
-                continue
+        for field, value, shape in (c for c in changes if c[1] is not None):
             value = jnp.asarray(value, dtype=float)
             check_shape(f"{field} of {name!r}", value, shape)
             updated = getattr(robot, field).at[i].set(value)
@@ -255,12 +260,13 @@ class MjcfRobot(Robot):
             if kind == "ball":
                 a = self.joint_qpos[j]
                 pieces.append(jnp.sum(q[a : a + 4] ** 2)[None] - 1.0)
+        pieces += [coupling_residuals(self, q)] if self.coupling_names else []
         return jnp.concatenate(pieces) if pieces else jnp.zeros((0,))
 
     def closure_count(self) -> int:
         """Number of loop-closure equations (rows of :meth:`constraint`)."""
-        rows = sum(len(r) for r in self.closure_rows)
-        return rows + sum(kind == "ball" for kind in self.joint_types)
+        rows = sum(len(r) for r in self.closure_rows) + len(self.coupling_names)
+        return rows + self.joint_types.count("ball")
 
     def assemble(self, independent, dependent) -> Coordinates:
         """``q`` from the independent and the dependent coordinates."""

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.mujoco.tree import Connect, Joint, Tree, TreeBody, vec
+from jaxbal._src.mujoco.tree import Connect, Coupling, Joint, Tree, TreeBody, vec
 from jaxbal._src.robots.mjcf_kinematics import world_frames
 
 
@@ -108,7 +108,12 @@ def mjcf_tree(robot) -> Tree:
     solved = tuple(
         name
         for name, start in zip(robot.joint_names, robot.joint_qpos, strict=True)
-        if connects and start not in independent
+        if (connects or robot.coupling_names) and start not in independent
+    )
+    coef = np.asarray(robot.coupling_coef)
+    couplings = tuple(
+        Coupling(robot.joint_names[j1], robot.joint_names[j2] if j2 >= 0 else None, vec(*coef[k]))
+        for k, (j1, j2) in enumerate(robot.coupling_joints)
     )
     coordinates = QposOffsets(vec(offsets))
     return Tree(
@@ -118,4 +123,5 @@ def mjcf_tree(robot) -> Tree:
         actuated=actuated,
         solved=solved,
         guess=coordinates,
+        couplings=couplings,
     )
