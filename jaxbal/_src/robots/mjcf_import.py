@@ -92,8 +92,9 @@ def from_mjcf(
             carry ``<actuator>`` elements, or every hinge/slide of a serial mechanism
             but the coupled ones (``joint1`` of a joint equality, a URDF mimic joint).
         independent: the independent joints; default: ``actuated`` for a closed chain
-            (connects) or with couplings, every hinge/slide for a serial mechanism. A redundantly actuated
-            mechanism (the DUAL-V) names fewer independent than actuated joints.
+            (connects) or with couplings, every hinge/slide for a serial mechanism. A
+            redundantly actuated mechanism (the DUAL-V) names fewer independent than
+            actuated joints.
         end_effector_site: the site whose position is the end-effector pose (default:
             the model's only site, if it has exactly one).
         pose_components: world axes of the site position in the pose (default: those
