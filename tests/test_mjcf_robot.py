@@ -657,6 +657,28 @@ def test_a_move_between_two_configurations_is_the_move_between_their_poses(five_
         configuration_samples(robot, motion.q[0], motion.q[-1] + 0.1, 0.25, 5)
 
 
+def test_counter_masses_written_into_the_users_own_file(five_bar, tmp_path):
+    """export_balanced writes the five-bar's two counter-masses (one with an inertia)
+    into the user's MJCF text: MuJoCo C's base reaction on that file (mj_inverse, no
+    jaxbal kinematics) equals jaxbal's wrench of the robot (1e-9); the text keeps the
+    file's own elements; a robot changed besides its counter-masses is refused and no
+    file is left behind."""
+    from jaxbal.robots import export_balanced
+
+    robot, motion = five_bar
+    path = tmp_path / "five_bar_balanced.xml"
+    text = export_balanced(FIVE_BAR, robot, path)
+    assert (
+        path.read_text() == text and text.count("<body name=") == FIVE_BAR.count("<body name=") + 2
+    )
+    ours, _ = _wrenches(robot, *motion)
+    assert _relative(ours, _mujoco_reaction(text, *motion)) < 1e-9
+    changed = robot.with_body("distal_b", mass=1.0)
+    with pytest.raises(ValueError, match="changed besides its counter-masses"):
+        export_balanced(FIVE_BAR, changed, tmp_path / "refused.xml")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["five_bar_balanced.xml"]
+
+
 def test_balance_reports_the_bounds_it_reached(five_bar):
     """Counter positions boxed in ±2 cm (the start, outside, moved onto the box): the
     cranks' counter-masses need 0.5-1 m arms (unboxed optimum, interior: at_bound all

@@ -114,6 +114,26 @@ def test_mesh_inertia_and_bad_names_are_refused():
         from_mjcf(mujoco.MjModel.from_xml_string(NO_MESHES), end_effector_body="tool")
 
 
+def test_counter_masses_written_into_a_urdf_stay_urdf(tmp_path):
+    """A counter-mass (with an inertia tensor) on link2 is written as a URDF link on a
+    fixed joint, full precision: the file read back (meshes still missing, ignored) has
+    the robot's shaking wrench (1e-12)."""
+    from jaxbal.robots import add_counter_mass, export_balanced
+
+    source = tmp_path / "arm.urdf"
+    source.write_text(URDF)
+    robot = from_urdf(source, ignore_meshes=True)
+    inertia = np.array([[2e-4, 1e-5, 0.0], [1e-5, 3e-4, 0.0], [0.0, 0.0, 4e-4]])
+    robot = add_counter_mass(robot, "link2", (-0.1234567891, 0.01, 0.0), 0.7654321, inertia=inertia)
+    path = tmp_path / "balanced.urdf"
+    text = export_balanced(source, robot, path, ignore_meshes=True)
+    assert text.lstrip().startswith("<robot") and 'value="0.76543209999999995"' in text
+    written = from_urdf(path, ignore_meshes=True)
+    for ours, theirs in zip(jaxbal.shaking_wrench(robot, *STATE),
+                            jaxbal.shaking_wrench(written, *STATE), strict=True):  # fmt: skip
+        np.testing.assert_allclose(ours, theirs, rtol=1e-12, atol=1e-12)
+
+
 def test_mjcf_with_a_missing_mesh_loads_without_it():
     """An MJCF body with an <inertial> and a visual mesh whose file is absent (a model
     copied without its assets) loads with ignore_meshes; its mass is the inertial's."""
@@ -139,8 +159,10 @@ def test_cli_balances_a_urdf_arm_by_its_tool_link(tmp_path):
     path.write_text(URDF)
     move = ["balance", str(path), "--body", "tool", "--start", "0.45,0.1", "--end", "0.3,0.3"]
     runner = CliRunner()
-    result = runner.invoke(app, [*move, "--ignore-meshes", "--samples", "11"])
+    out = tmp_path / "balanced.urdf"
+    result = runner.invoke(app, [*move, "--ignore-meshes", "--samples", "11", "--out", str(out)])
     assert result.exit_code == 0, result.output
+    assert f"wrote {out}" in result.output and out.read_text().count("<link name=") == 5 + 2
     peaks = {}
     for line in result.output.splitlines():
         for key in ("peak shaking force", "balanced peak shaking force"):

@@ -161,6 +161,12 @@ def balance(
         help="weight of the added mass (relative to the robot's mass) against the force; "
         "with --free-masses",
     ),
+    out: Path = typer.Option(
+        None,
+        "--out",
+        help="write ROBOT with the counter-masses added (same format; relative mesh "
+        "paths resolve from its folder)",
+    ),
     joints: bool = typer.Option(
         False,
         "--joints",
@@ -175,6 +181,7 @@ def balance(
         pose_samples,
         with_counter_masses,
     )
+    from jaxbal._src.robots.mjcf_export import export_balanced
     from jaxbal._src.robots.mjcf_import import from_mjcf
 
     try:
@@ -207,6 +214,8 @@ def balance(
         result = codesign_counter_masses(
             start_design, motion, free=free, objective=objective, **bounds
         )
+        if out is not None:
+            export_balanced(robot, result.robot, out, ignore_meshes=ignore_meshes)
     except ValueError as error:
         typer.echo(f"error: {error}", err=True)
         raise typer.Exit(code=2) from None
@@ -245,6 +254,8 @@ def balance(
             typer.echo(f"  {equation}")
         residual = float(np.max(np.abs(found.residuals(result.robot)), initial=0.0))
         typer.echo(f"largest residual of the design {residual:.3g}")
+    if out is not None:
+        typer.echo(f"wrote {out} (the model with its counter-masses)")
 
 
 def _objective(moment_weight: float, mass_weight: float):

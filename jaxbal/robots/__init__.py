@@ -13,6 +13,7 @@ studies that reproduce each paper (used by ``experiments/``) in
 from jaxbal._src.robots import ALIASES, ROBOTS, by_name
 from jaxbal._src.robots.counter_mass import add_counter_mass
 from jaxbal._src.robots.dual_v import CROSSED, OUTWARD, DualV, dual_v
+from jaxbal._src.robots.mjcf_export import export_balanced
 from jaxbal._src.robots.mjcf_import import from_mjcf, from_urdf
 from jaxbal._src.robots.mjcf_robot import MjcfRobot
 from jaxbal._src.robots.orthoglide import Orthoglide, orthoglide
@@ -39,6 +40,7 @@ __all__ = [
     "scara",
     "MjcfRobot",
     "add_counter_mass",
+    "export_balanced",
     "from_mjcf",
     "from_urdf",
 ]
