@@ -66,11 +66,12 @@ class ClosureIndex(NamedTuple):
 
 
 def closure_index(model: mujoco.MjModel, solved: tuple[str, ...]) -> ClosureIndex:
-    """Index the ``solved`` joints and the ``connect`` sites of ``model``.
+    """Index the ``solved`` joints, the ``connect`` sites and the joint equalities of
+    ``model``.
 
     Raises:
-        ValueError: an unknown joint name, or an equality that is not a site-to-site
-            ``connect`` (the only kind jaxbal writes).
+        ValueError: an unknown joint name, or an equality that is neither a
+            site-to-site ``connect`` nor a joint equality (the kinds jaxbal writes).
     """
     dofs, positions, scalar, hinge = [], [], [], []
     for name in solved:
@@ -139,7 +140,8 @@ def _couplings(model, qpos, index: ClosureIndex):
 
 
 def _residual_and_jacobian(model, data, index: ClosureIndex):
-    """``r (3·loops,)`` [m] and ``∂r/∂v (3·loops, nv)`` at ``data.qpos``."""
+    """``r (3·loops + couplings,)`` [m, rad] and ``∂r/∂v`` ``(len(r), nv)`` at
+    ``data.qpos``."""
     mujoco.mj_kinematics(model, data)
     mujoco.mj_comPos(model, data)
     residual, jacobian = [], []
@@ -156,7 +158,8 @@ def _residual_and_jacobian(model, data, index: ClosureIndex):
 
 
 def _bias(model, data, index: ClosureIndex) -> np.ndarray:
-    """``J̇ v`` of the loop residual at ``data.qpos, data.qvel`` [m/s²]."""
+    """``J̇ v`` of the loop and coupling residuals at ``data.qpos, data.qvel`` [m/s²,
+    rad/s²]."""
     mujoco.mj_comVel(model, data)
     rows = []
     for s1, s2 in index.sites:

@@ -92,7 +92,7 @@ def from_mjcf(
             carry ``<actuator>`` elements, or every hinge/slide of a serial mechanism
             but the coupled ones (``joint1`` of a joint equality, a URDF mimic joint).
         independent: the independent joints; default: ``actuated`` for a closed chain
-            (connects) or with couplings, every hinge/slide for a serial mechanism. A
+            (connects), every hinge/slide but the coupled ones for a serial mechanism. A
             redundantly actuated mechanism (the DUAL-V) names fewer independent than
             actuated joints.
         end_effector_site: the site whose position is the end-effector pose (default:
@@ -150,7 +150,7 @@ def from_mjcf(
     actuated_q = _coordinates(parsed, actuated, "actuated")
     independent = _names(independent)
     if independent is None:
-        independent = actuated if closed or coupled else hinges
+        independent = actuated if closed else hinges
     independent_q = _coordinates(parsed, independent, "independent")
 
     site_body, site_pos, components, free = -1, np.zeros(3), (), ()
