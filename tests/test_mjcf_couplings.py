@@ -77,7 +77,7 @@ def test_mujoco_closes_the_coupling_itself_and_agrees():
     robot = from_mjcf(_geared("0.1 -3 0.7 0.2 0", ref=0.2))
     times = np.linspace(0.0, 1.0, 4)
     u = jnp.stack([0.4 * np.sin(3 * times), 1.2 * np.cos(3 * times), -3.6 * np.sin(3 * times)])
-    motion = jax.vmap(lambda a, b, c: _state(robot, (a, b, c)))(*u)
+    motion = jax.jit(jax.vmap(lambda r, a, b, c: _state(r, (a, b, c)), (None, 0, 0, 0)))(robot, *u)
     result = confirm(robot, *motion)
     assert result.independent and result.closed_by_mujoco
     assert result.relative < 1e-9 and result.closure_difference < 1e-12, result

@@ -6,6 +6,7 @@ robot compiled from the file with its mesh elements deleted by hand (wrench equa
 1e-14), MuJoCo's own error for a missing file.
 """
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
@@ -45,6 +46,7 @@ URDF = f"""<?xml version="1.0"?>
 </robot>
 """
 NO_MESHES = "\n".join(line for line in URDF.splitlines() if "<mesh" not in line)
+_WRENCH = jax.jit(jaxbal.shaking_wrench)  # one program per robot structure
 STATE = tuple(jnp.asarray(v) for v in ([0.4, -1.1], [1.5, -2.0], [3.0, 4.5]))
 
 
@@ -68,8 +70,8 @@ def test_missing_meshes_are_named_with_the_remedy_and_ignored_on_request():
     assert robot.mass_names() == reference.mass_names() == ("link1", "link2")
     for name in ("mass", "com", "inertia"):
         np.testing.assert_allclose(getattr(robot, name), getattr(reference, name), atol=1e-15)
-    force, moment = jaxbal.shaking_wrench(robot, *STATE)
-    expected = jaxbal.shaking_wrench(reference, *STATE)
+    force, moment = _WRENCH(robot, *STATE)
+    expected = _WRENCH(reference, *STATE)
     np.testing.assert_allclose(force, expected[0], rtol=1e-14, atol=1e-14)
     np.testing.assert_allclose(moment, expected[1], rtol=1e-14, atol=1e-14)
 
@@ -114,6 +116,7 @@ def test_mesh_inertia_and_bad_names_are_refused():
         from_mjcf(mujoco.MjModel.from_xml_string(NO_MESHES), end_effector_body="tool")
 
 
+@pytest.mark.slow  # make test: the CLI test below writes a URDF through the same check
 def test_counter_masses_written_into_a_urdf_stay_urdf(tmp_path):
     """A counter-mass (with an inertia tensor) on link2 is written as a URDF link on a
     fixed joint, full precision: the file read back (meshes still missing, ignored) has
@@ -129,8 +132,8 @@ def test_counter_masses_written_into_a_urdf_stay_urdf(tmp_path):
     text = export_balanced(source, robot, path, ignore_meshes=True)
     assert text.lstrip().startswith("<robot") and 'value="0.76543209999999995"' in text
     written = from_urdf(path, ignore_meshes=True)
-    for ours, theirs in zip(jaxbal.shaking_wrench(robot, *STATE),
-                            jaxbal.shaking_wrench(written, *STATE), strict=True):  # fmt: skip
+    for ours, theirs in zip(_WRENCH(robot, *STATE),
+                            _WRENCH(written, *STATE), strict=True):  # fmt: skip
         np.testing.assert_allclose(ours, theirs, rtol=1e-12, atol=1e-12)
 
 
@@ -172,8 +175,6 @@ def test_cli_balances_a_urdf_arm_by_its_tool_link(tmp_path):
     refused = runner.invoke(app, move)
     assert refused.exit_code == 2 and "--ignore-meshes" in refused.output
     joints = [*move[:4], "--ignore-meshes", "--samples", "11", "--joints"]
-    between = runner.invoke(app, [*joints, "--start", "0.3,0.8", "--end", "1.2,0.6"])
-    assert between.exit_code == 0, between.output
     flipped = runner.invoke(app, [*joints, "--start", "0.3,0.8", "--end", "1.4,-0.8"])
     assert flipped.exit_code == 2 and "not in end's assembly mode" in flipped.output
     negative = runner.invoke(app, [*joints, "--start", "0.3,0.8", "--end", "1.2,0.6",

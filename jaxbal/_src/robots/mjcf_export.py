@@ -29,6 +29,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import jax
+import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.momentum import shaking_wrench
@@ -114,6 +115,13 @@ def _add_to_urdf(root, robot: MjcfRobot) -> None:
         ET.SubElement(joint, "child", link=name)
 
 
+@jax.jit
+def _wrenches_and_scales(robot: MjcfRobot, q, qd, qdd):
+    """``((T, 3), (T, 3))`` shaking wrenches and the gross force and moment scales."""
+    wrenches = jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c))(q, qd, qdd)
+    return wrenches, _gross_scales(robot, q, qd, qdd, jnp.zeros(3))
+
+
 def _check_same_wrench(robot: MjcfRobot, path: Path, ignore_meshes: bool) -> None:
     """Refuse the model at ``path`` unless its shaking wrench equals ``robot``'s."""
     from jaxbal._src.robots.mjcf_import import from_mjcf
@@ -131,13 +139,9 @@ def _check_same_wrench(robot: MjcfRobot, path: Path, ignore_meshes: bool) -> Non
     states = [np.asarray(robot.reference) + rng.uniform(-1, 1, shape)]
     states += [rng.uniform(-3, 3, shape), rng.uniform(-10, 10, shape)]
     # a balanced robot's wrench may vanish at every state: compare to the gross scales
-    scales = _gross_scales(robot, *states, np.zeros(3))
-    for ours, theirs, scale in zip(
-        jax.vmap(lambda *s: shaking_wrench(robot, *s))(*states),
-        jax.vmap(lambda *s: shaking_wrench(written, *s))(*states),
-        scales,
-        strict=True,
-    ):
+    robot_wrench, scales = _wrenches_and_scales(robot, *states)
+    written_wrench, _ = _wrenches_and_scales(written, *states)
+    for ours, theirs, scale in zip(robot_wrench, written_wrench, scales, strict=True):
         scale = max(float(scale), 1e-300)
         gap = float(np.max(np.abs(np.asarray(ours) - np.asarray(theirs))))
         if gap > EXPORT_RTOL * scale:
