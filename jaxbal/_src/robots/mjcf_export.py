@@ -36,6 +36,7 @@ from jaxbal._src.momentum import shaking_wrench
 from jaxbal._src.mujoco.confirm import _gross_scales
 from jaxbal._src.mujoco.mjcf import realisable_inertia
 from jaxbal._src.mujoco.tree import matrix_to_quat
+from jaxbal._src.robots.mjcf_parse import text_or_path
 from jaxbal._src.robots.mjcf_robot import MjcfRobot
 
 __all__ = ["EXPORT_RTOL", "export_balanced"]
@@ -56,12 +57,8 @@ def _source_text(source) -> tuple[str, Path | None]:
 
     if isinstance(source, mujoco.MjModel):
         raise ValueError("export_balanced writes into the model's file: pass its path or text")
-    if isinstance(source, str) and source.lstrip().startswith("<"):
-        return source, None
-    path = Path(source)
-    if not path.is_file():
-        raise ValueError(f"no such MJCF/URDF file: {str(path)!r}")
-    return path.read_text(), path
+    text, path = text_or_path(source)
+    return (text, None) if path is None else (path.read_text(), path)
 
 
 def _counters(robot: MjcfRobot):

@@ -77,6 +77,20 @@ class Parsed(NamedTuple):
     extent: float  # MuJoCo's model extent [m]
 
 
+def text_or_path(source) -> tuple[str | None, Path | None]:
+    """``(text, None)`` for XML text (it starts with ``<``), ``(None, path)`` for a file.
+
+    Raises:
+        ValueError: a path that is not a file.
+    """
+    if isinstance(source, str) and source.lstrip().startswith("<"):
+        return source, None
+    path = Path(source)
+    if not path.is_file():
+        raise ValueError(f"no such MJCF/URDF file: {str(path)!r}")
+    return None, path
+
+
 def load_model(source):
     """Compile ``source`` with MuJoCo: an ``MjModel``, XML text (MJCF or URDF) or a path.
 
@@ -87,13 +101,10 @@ def load_model(source):
 
     if isinstance(source, mujoco.MjModel):
         return source
-    text = source if isinstance(source, str) and source.lstrip().startswith("<") else None
+    text, path = text_or_path(source)
     try:
         if text is not None:
             return mujoco.MjModel.from_xml_string(text)
-        path = Path(source)
-        if not path.is_file():
-            raise ValueError(f"no such MJCF/URDF file: {str(path)!r}")
         return mujoco.MjModel.from_xml_path(str(path))
     except ValueError as error:
         raise ValueError(f"MuJoCo could not compile the model: {error}") from None

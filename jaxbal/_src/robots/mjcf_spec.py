@@ -21,11 +21,10 @@ References:
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 
-from jaxbal._src.robots.mjcf_parse import load_model
+from jaxbal._src.robots.mjcf_parse import load_model, text_or_path
 
 __all__ = ["MESH_HINT", "compile_model"]
 
@@ -52,16 +51,12 @@ def _spec(source):
             "ignore_meshes and end_effector_body edit the model before it compiles: pass "
             "the XML text or the file's path, not an MjModel"
         )
+    text, path = text_or_path(source)
     try:
-        if isinstance(source, str) and source.lstrip().startswith("<"):
-            return mujoco.MjSpec.from_string(source)
-        path = Path(source)
-        if not path.is_file():
-            raise ValueError(f"no such MJCF/URDF file: {str(path)!r}")
-        return mujoco.MjSpec.from_file(str(path))
+        return (
+            mujoco.MjSpec.from_string(text) if path is None else mujoco.MjSpec.from_file(str(path))
+        )
     except ValueError as error:
-        if "no such MJCF/URDF file" in str(error):
-            raise
         raise ValueError(f"MuJoCo could not read the model: {error}") from None
 
 
