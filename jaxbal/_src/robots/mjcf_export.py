@@ -124,13 +124,21 @@ def _check_same_wrench(robot: MjcfRobot, path: Path, ignore_meshes: bool) -> Non
     from jaxbal._src.robots.mjcf_import import from_mjcf
 
     joint = {q: robot.joint_names[robot.joint_qpos.index(q)] for q in robot.joint_qpos}
-    written = from_mjcf(
-        path,
-        actuated=[joint[q] for q in robot.actuated_coordinates],
-        independent=[joint[q] for q in robot.independent_coordinates],
-        ignore_armature=True,
-        ignore_meshes=ignore_meshes,
-    )
+    try:
+        written = from_mjcf(
+            path,
+            actuated=[joint[q] for q in robot.actuated_coordinates],
+            independent=[joint[q] for q in robot.independent_coordinates],
+            ignore_armature=True,
+            ignore_meshes=ignore_meshes,
+        )
+    except ValueError as error:
+        if "Error opening file" not in str(error):
+            raise
+        raise ValueError(
+            f"the written model cannot be read back from {str(path.parent)!r}: {error}; "
+            "write it next to the source (its relative paths resolve from there)"
+        ) from None
     rng = np.random.default_rng(0)
     shape = (EXPORT_STATES, robot.dof)
     states = [np.asarray(robot.reference) + rng.uniform(-1, 1, shape)]
