@@ -180,6 +180,9 @@ def test_cli_balances_a_urdf_arm_by_its_tool_link(tmp_path):
     negative = runner.invoke(app, [*joints, "--start", "0.3,0.8", "--end", "1.2,0.6",
                                    "--moment-weight", "-1"])  # fmt: skip
     assert negative.exit_code == 2 and "--moment-weight must be finite and >= 0" in negative.output
+    zero = runner.invoke(app, [*joints, "--start", "0.3,0.8", "--end", "1.2,0.6",
+                               "--position-bound", "0"])  # fmt: skip
+    assert zero.exit_code == 2 and "--position-bound must be finite and > 0" in zero.output
 
 
 def _numbers(output: str, *keys: str) -> dict[str, float]:

@@ -158,8 +158,8 @@ def balance(
     mass_weight: float = typer.Option(
         0.0,
         "--mass-weight",
-        help="weight of the added mass (relative to the robot's mass) against the force; "
-        "with --free-masses",
+        help="weight of the added mass against the force (each relative to its value at "
+        "the start); with --free-masses",
     ),
     out: Path = typer.Option(
         None,
@@ -186,6 +186,14 @@ def balance(
 
     try:
         objective = _objective(moment_weight, mass_weight)
+        bounds = {}
+        if position_bound is not None:
+            if not (np.isfinite(position_bound) and position_bound > 0):
+                raise ValueError(f"--position-bound must be finite and > 0, got {position_bound}")
+            bounds = {
+                "lower": {"counter_position": -position_bound},
+                "upper": {"counter_position": position_bound},
+            }
         mechanism = from_mjcf(
             robot,
             actuated=actuated,
@@ -205,12 +213,6 @@ def balance(
         bodies = None if counter_bodies is None else counter_bodies.split(",")
         start_design = with_counter_masses(mechanism, bodies)
         free = ("counter_position", "counter_mass") if free_masses else ("counter_position",)
-        bounds = {}
-        if position_bound is not None:
-            bounds = {
-                "lower": {"counter_position": -position_bound},
-                "upper": {"counter_position": position_bound},
-            }
         result = codesign_counter_masses(
             start_design, motion, free=free, objective=objective, **bounds
         )
@@ -261,7 +263,7 @@ def balance(
 def _objective(moment_weight: float, mass_weight: float):
     """The co-design objective of ``jaxbal balance``: the RMS shaking force, plus the
     RMS moment and the added mass with these weights (each metric relative to its value
-    at the start, the added mass to the robot's mass: jaxbal.design.codesign)."""
+    at the start: jaxbal.design.codesign)."""
     for option, weight in (("--moment-weight", moment_weight), ("--mass-weight", mass_weight)):
         if not (np.isfinite(weight) and weight >= 0.0):
             raise ValueError(f"{option} must be finite and >= 0, got {weight}")
