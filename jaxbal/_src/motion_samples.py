@@ -128,7 +128,7 @@ def motion_samples(robot: Robot, trajectories, times, order: int = 2) -> Motion 
             raise ValueError(f"times must have shape (t,), got {instants.shape}")
         # A lambda or closure as a pytree: an equivalent new one reuses the compilation.
         (q, qd, qdd, *jerk), valid = checked_call(
-            _sample, robot, as_pytree(trajectory), instants, order
+            _sample, robot, as_pytree(trajectory), instants, order, once=True
         )
         raise_if_invalid(
             valid,

@@ -52,7 +52,8 @@ def sample(path: Callable, times: Float[Array, " t"], order: int = 2) -> tuple:
     once per path structure: a lambda or closure path is taken as a pytree, so an
     equivalent new one reuses the program (op by op, a third-order sample of a profile
     took seconds). Under a trace it is inlined."""
-    return checked_call(_sampled, as_pytree(path), jnp.asarray(times, dtype=float), order)
+    times = jnp.asarray(times, dtype=float)
+    return checked_call(_sampled, as_pytree(path), times, order, once=True)
 
 
 def _sampled(path: Callable, times, order: int) -> tuple:

@@ -155,7 +155,7 @@ def pose_samples(robot: MjcfRobot, start, end, duration, count: int = 101, profi
     """
     line = StraightLine(start, end, Quintic() if profile is None else profile, duration)
     times = sample_times(duration, count)
-    states = checked_call(_pose_states, robot, line, times)
+    states = checked_call(_pose_states, robot, line, times, once=True)
     hint = "" if bool(np.all(np.asarray(states[3]))) else _singular_start(robot)
     return _samples(states, times, "end-effector line", hint)
 
@@ -227,7 +227,8 @@ def closure_samples(robot: MjcfRobot, start, end, duration, count: int = 101, pr
     ``(m,)`` [rad, m] (loop closures solved at every instant)."""
     line = StraightLine(start, end, Quintic() if profile is None else profile, duration)
     times = sample_times(duration, count)
-    return _samples(checked_call(_closure_states, robot, line, times), times, "joint line")
+    states = checked_call(_closure_states, robot, line, times, once=True)
+    return _samples(states, times, "joint line")
 
 
 def with_counter_masses(robot: MjcfRobot, bodies=None, scale: float = 1.0) -> MjcfRobot:
