@@ -172,3 +172,27 @@ def test_eager_wrench_and_com_are_one_program_each_with_the_eager_errors():
     huge = eqx.tree_at(lambda r: r.lengths, robot, robot.lengths * 1e308)
     with pytest.raises(ValueError, match="overflow"):
         jaxbal.center_of_mass(huge, state[0])
+
+
+def test_sampling_runs_once_with_fast_compile_options_and_metrics_keep_the_defaults():
+    """Sampling a motion (a program that runs once per compilation) is compiled with the
+    fast-compile options (LLVM level 0); a metric's program, which sweeps and
+    optimisers run many times, keeps XLA's defaults. The sampled motion is exact: the
+    2R's end-effector follows the line (1e-12)."""
+    from jaxbal._src import motion_samples as sampling
+    from jaxbal._src import validation
+    from jaxbal.planning import EndEffectorLine
+
+    robot = jaxbal.robots.planar_2r()
+    start, end = jnp.array([0.6, 0.1]), jnp.array([0.1, 0.6])
+    line = jaxbal.StraightLine(start, end, jaxbal.profiles.Quintic(), 0.3)
+    motion = jaxbal.design.motion_samples(
+        robot, [EndEffectorLine(robot, line)], jnp.linspace(0, 0.3, 7)
+    )
+    program = validation._LIBRARY[sampling._sample]
+    assert program.compiler_options["xla_backend_optimization_level"] == 0
+    tip = jax.vmap(robot.end_effector)(motion.q)
+    np.testing.assert_allclose(tip, jax.vmap(line)(jnp.linspace(0, 0.3, 7)), atol=1e-12)
+    jaxbal.planning.wrench_along(robot, EndEffectorLine(robot, line), jnp.linspace(0, 0.3, 7))
+    wrench = next(f for f in validation._LIBRARY if f.__name__ == "_wrench_along")
+    assert validation._LIBRARY[wrench].compiler_options is None

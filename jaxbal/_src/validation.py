@@ -287,6 +287,7 @@ def checked_jit(fn, *, compiler_options: dict | None = None):
             raise ValueError(message) from failure
 
     call.compiled = compiled  # the programs, for inspection (tests)
+    call.compiler_options = compiler_options
     call.refused = refused
     call.programs = programs  # mode -> compiled program, those built so far (tests)
     return call
