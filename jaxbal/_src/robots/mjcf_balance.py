@@ -321,14 +321,15 @@ def balance(
     if not robot.counter_names:
         raise ValueError("the robot has no counter-masses: use with_counter_masses first")
     bare = robot.with_design({"counter_mass": jnp.zeros_like(robot.counter_mass)})
-    unbalanced = [float(v) for v in checked_call(_peaks, bare, motion)]
-    before = [float(v) for v in checked_call(_peaks, robot, motion)]
+    # peaks: evaluated three times per balance, a compile-bound program (``once``)
+    unbalanced = [float(v) for v in checked_call(_peaks, bare, motion, once=True)]
+    before = [float(v) for v in checked_call(_peaks, robot, motion, once=True)]
     robot = _clipped(robot, free, lower, upper)
     solution = codesign(
         robot, motion, objective, free=free, lower=lower, upper=upper,
         max_steps=max_steps, gtol=gtol,
     )  # fmt: skip
-    after = [float(v) for v in checked_call(_peaks, solution.robot, motion)]
+    after = [float(v) for v in checked_call(_peaks, solution.robot, motion, once=True)]
     return Balance(
         robot=solution.robot,
         solution=solution,

@@ -23,6 +23,7 @@ References:
 
 from __future__ import annotations
 
+import functools
 import os
 import tempfile
 import xml.etree.ElementTree as ET
@@ -32,6 +33,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._src.config import compiler_options
 from jaxbal._src.momentum import shaking_wrench
 from jaxbal._src.mujoco.confirm import _gross_scales
 from jaxbal._src.mujoco.mjcf import realisable_inertia
@@ -112,11 +114,18 @@ def _add_to_urdf(root, robot: MjcfRobot) -> None:
         ET.SubElement(joint, "child", link=name)
 
 
-@jax.jit
 def _wrenches_and_scales(robot: MjcfRobot, q, qd, qdd):
     """``((T, 3), (T, 3))`` shaking wrenches and the gross force and moment scales."""
     wrenches = jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c))(q, qd, qdd)
     return wrenches, _gross_scales(robot, q, qd, qdd, jnp.zeros(3))
+
+
+@functools.cache
+def _check_program():
+    """:func:`_wrenches_and_scales` compiled with the fast-compile options (it runs once
+    per export: :func:`~jaxbal._src.validation.checked_call`'s ``once``); built on first
+    use, since the options probe the backend."""
+    return jax.jit(_wrenches_and_scales, compiler_options=compiler_options(0))
 
 
 def _check_same_wrench(robot: MjcfRobot, path: Path, ignore_meshes: bool) -> None:
@@ -144,8 +153,8 @@ def _check_same_wrench(robot: MjcfRobot, path: Path, ignore_meshes: bool) -> Non
     states = [np.asarray(robot.reference) + rng.uniform(-1, 1, shape)]
     states += [rng.uniform(-3, 3, shape), rng.uniform(-10, 10, shape)]
     # a balanced robot's wrench may vanish at every state: compare to the gross scales
-    robot_wrench, scales = _wrenches_and_scales(robot, *states)
-    written_wrench, _ = _wrenches_and_scales(written, *states)
+    robot_wrench, scales = _check_program()(robot, *states)
+    written_wrench, _ = _check_program()(written, *states)
     for ours, theirs, scale in zip(robot_wrench, written_wrench, scales, strict=True):
         scale = max(float(scale), 1e-300)
         gap = float(np.max(np.abs(np.asarray(ours) - np.asarray(theirs))))
