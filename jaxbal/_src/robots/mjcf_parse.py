@@ -7,11 +7,13 @@ as MuJoCo resolves it. :func:`parse` then reads the compiled arrays: the body tr
 (``body_parentid``, ``body_pos``, ``body_quat``), the inertials (``body_mass``,
 ``body_ipos``, ``body_iquat``, ``body_inertia``), the joints (``jnt_type``, ``jnt_axis``,
 ``jnt_pos``, ``jnt_bodyid``, ``qpos0``), the ``connect`` equalities (``eq_data`` or their
-two sites) and the actuated joints (``actuator_trnid``).
+two sites), the joint equalities (:mod:`~jaxbal._src.robots.mjcf_couplings`) and the
+actuated joints (``actuator_trnid``).
 
 Supported: hinge, slide and ball joints on a fixed base (the worldbody), ``connect``
-loop closures. Anything else that would change the dynamics (free joints, tendons, other
-equalities, inactive equalities, actuators on non-joints or ball joints, mocap bodies,
+loop closures, joint couplings (gears, URDF mimic joints). Anything else that would
+change the dynamics (free joints, tendons, weld and tendon equalities, inactive
+equalities, actuators on non-joints or ball joints, mocap bodies,
 flexes, gravity compensation, joint armature) raises a ``ValueError`` naming it:
 nothing is silently dropped. Contacts, limits, damping and springs do not enter the
 inertial base reaction and are ignored.
