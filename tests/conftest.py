@@ -13,7 +13,8 @@ os.environ["JAXBAL_CACHE_DIR"] = "off"
 # emitters, the options jaxbal already gives its co-design program (config.py); neither
 # enables fast-math, so the arithmetic, and every tolerance, is the same. Measured on
 # the 2-core CPU: test_peak_derivative + test_contract 105 -> 58 s. Subprocesses
-# (notebooks, the CLI, the cache test) inherit it.
+# (notebooks, the CLI, the cache test) inherit it. JAXBAL_TEST_FAST_COMPILE=0 in the
+# environment runs the suite with XLA's default options (what users run).
 _FAST_COMPILE = "--xla_backend_optimization_level=0 --xla_cpu_use_fusion_emitters=false"
 
 
