@@ -153,7 +153,7 @@ class TrapezoidLine(eqx.Module):
     def __call__(self, robot: Robot, theta) -> Motion | JerkMotion:
         # eagerly one compiled program (checks raise ValueError), inlined under a trace
         check_robot(robot)  # the IK alone would accept e.g. negative lengths
-        return checked_call(_line_motion, self, robot, _arrays(theta))
+        return checked_call(_line_motion, self, robot, _arrays(theta), once=True)
 
 
 class ComTrapezoid(eqx.Module):
@@ -197,7 +197,7 @@ class ComTrapezoid(eqx.Module):
         # eagerly one compiled program (checks raise ValueError), inlined under a trace:
         # op by op, the COM plan's end points and the join check took seconds
         check_robot(robot)
-        return checked_call(_com_motion, self, robot, _arrays(theta))
+        return checked_call(_com_motion, self, robot, _arrays(theta), once=True)
 
     def valid(self, robot: Robot, theta) -> Array:
         """``(t,)`` boolean mask, one entry per sample instant (the jerk-phase instants
@@ -205,7 +205,7 @@ class ComTrapezoid(eqx.Module):
         factory raises (eagerly and under ``jit``); e.g. a payload that moves the COM
         line out of the robot's COM workspace. Called eagerly it runs as one compiled
         program (op by op it took seconds)."""
-        return checked_call(_valid_mask, self, robot, _arrays(theta))
+        return checked_call(_valid_mask, self, robot, _arrays(theta), once=True)
 
     def _plan(self, robot: Robot, theta):
         """``(times, profile, COM line)`` of the move for ``robot`` and ``θ``."""

@@ -94,7 +94,7 @@ class ComLine(eqx.Module):
     def valid(self, times: Float[Array, " t"]) -> Float[Array, " t"]:
         """Boolean mask: is the COM target reachable at each time (no exception).
         Called eagerly it runs as one compiled program (op by op it took seconds)."""
-        return checked_call(_valid_mask, self, jnp.asarray(times, dtype=float))
+        return checked_call(_valid_mask, self, jnp.asarray(times, dtype=float), once=True)
 
 
 def _valid_mask(plan: ComLine, times):
