@@ -359,14 +359,11 @@ def checked_call(fn, *args, once: bool = False):
     """``checked_jit(fn)(*args)`` for a module-level function of jaxbal, compiled once
     per process (e.g. the sampling of :func:`~jaxbal.design.motion_samples`).
 
-    ``once``: a program that typically runs once per compilation (sampling a motion, a
-    motion factory called eagerly, a plan's validity mask), so its compile time is what
-    the user waits for: compiled with XLA's fast-compile options
-    (:func:`~jaxbal._src.config.compiler_options` at level 0: LLVM ``-O0``, the
-    elemental emitters; the same arithmetic, no fast-math). Measured on the 2-core CPU
-    (DUAL-V, 1,000 samples, fresh processes): ``motion_samples`` 2.6 -> 1.25 s, the
-    program itself ~1.5x slower to run. Throughput programs (wrench, metrics,
-    gradients) keep the defaults.
+    ``once``: a program that typically runs once per compilation (sampling a motion, an
+    eager motion factory, a validity mask): compiled with XLA's fast-compile options
+    (:func:`~jaxbal._src.config.compiler_options` level 0; same arithmetic, no
+    fast-math). DUAL-V ``motion_samples`` (1,000 samples, 2-core CPU, fresh processes)
+    2.6 -> 1.25 s, the program ~1.5x slower to run: throughput programs keep defaults.
     """
     if fn not in _LIBRARY:
         options = compiler_options(ONCE_OPTIMIZATION_LEVEL) if once else None
