@@ -166,11 +166,7 @@ def test_cli_balances_a_urdf_arm_by_its_tool_link(tmp_path):
     result = runner.invoke(app, [*move, "--ignore-meshes", "--samples", "11", "--out", str(out)])
     assert result.exit_code == 0, result.output
     assert f"wrote {out}" in result.output and out.read_text().count("<link name=") == 5 + 2
-    peaks = {}
-    for line in result.output.splitlines():
-        for key in ("peak shaking force", "balanced peak shaking force"):
-            if line.startswith(key + " "):
-                peaks[key] = float(line.split()[-2])
+    peaks = _numbers(result.output, "peak shaking force", "balanced peak shaking force")
     assert peaks["balanced peak shaking force"] < 1e-9 * peaks["peak shaking force"]
     refused = runner.invoke(app, move)
     assert refused.exit_code == 2 and "--ignore-meshes" in refused.output

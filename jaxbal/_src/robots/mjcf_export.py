@@ -36,7 +36,7 @@ import numpy as np
 from jaxbal._src.config import compiler_options
 from jaxbal._src.momentum import shaking_wrench
 from jaxbal._src.mujoco.confirm import _gross_scales
-from jaxbal._src.mujoco.mjcf import realisable_inertia
+from jaxbal._src.mujoco.mjcf import _fmt, realisable_inertia
 from jaxbal._src.mujoco.tree import matrix_to_quat
 from jaxbal._src.robots.mjcf_parse import text_or_path
 from jaxbal._src.robots.mjcf_robot import MjcfRobot
@@ -48,10 +48,6 @@ __all__ = ["EXPORT_RTOL", "export_balanced"]
 #: :data:`EXPORT_STATES` random states.
 EXPORT_RTOL = 1e-9
 EXPORT_STATES = 3
-
-
-def _fmt(values) -> str:
-    return " ".join(f"{float(v):.17g}" for v in np.ravel(np.asarray(values, dtype=float)))
 
 
 def _source_text(source) -> tuple[str, Path | None]:
