@@ -3,7 +3,7 @@
 This module is the public index: everything a user needs is imported here or in the
 public submodules :mod:`jaxbal.robots`, :mod:`jaxbal.profiles`,
 :mod:`jaxbal.planning`, :mod:`jaxbal.design`, :mod:`jaxbal.balancing`,
-:mod:`jaxbal.sensitivity`,
+:mod:`jaxbal.sensitivity`, :mod:`jaxbal.vibration`,
 :mod:`jaxbal.sweep` (callable: ``jaxbal.sweep(metric, robot, motion, axes)``),
 :mod:`jaxbal.mujoco` (imported on first use: MuJoCo is slow to import) and
 :mod:`jaxbal.report`. The implementation lives in :mod:`jaxbal._src` (private).
@@ -13,7 +13,7 @@ Importing jaxbal enables float64 in JAX (see :mod:`jaxbal._src.config`).
 
 import importlib
 
-from jaxbal import balancing, design, planning, profiles, robots, sensitivity, sweep  # noqa: E402, I001
+from jaxbal import balancing, design, planning, profiles, robots, sensitivity, sweep, vibration  # noqa: E402, I001, E501
 from jaxbal._src import config as _config  # noqa: F401  (enables float64 once)
 from jaxbal._src.actuation import actuator_torques, velocity_basis
 from jaxbal._src.dynamics import (
@@ -99,4 +99,5 @@ __all__ = [
     "time_derivatives",
     "total_mass",
     "velocity_basis",
+    "vibration",
 ]

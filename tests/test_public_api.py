@@ -33,6 +33,7 @@ PUBLIC_MODULES = (
     "jaxbal.design",
     "jaxbal.balancing",
     "jaxbal.sensitivity",
+    "jaxbal.vibration",
     "jaxbal.mujoco",
     "jaxbal.report",
 )

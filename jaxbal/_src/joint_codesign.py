@@ -13,14 +13,13 @@ or by a smooth maximum (``robust="max"``), the log-mean-exp of the ``n`` payload
 
 with ``s`` the metric's scale and ``k = sharpness``; it equals ``v`` exactly for a
 metric that does not depend on the payload (the added mass), so a Pareto front's
-added-mass end point is the added mass itself, not ``v + s log(n)/k``. Constraints (torque limit,
-added-mass budget, …) hold at the *worst* payload (hard maximum). The loss, the bound
-reparametrisation and the penalty are those of :mod:`jaxbal._src.design`; so is the
+added-mass end point is the added mass itself, not ``v + s log(n)/k``. Constraints (torque
+limit, added-mass budget, …) hold at the *worst* payload (hard maximum). The loss, the
+bound reparametrisation, the penalty are those of :mod:`jaxbal._src.design`; so is the
 solver: by default the host-driven L-BFGS of :mod:`jaxbal._src.lbfgs` around one compiled
-program, the loss's value and gradient with the metric values at every payload (the
-first joint co-design of the 2R test problem compiled in 21 s with optax's compiled
-loop, which inlines the motion factory at every call site, and in 10.5 s so, on the
-2-core CPU); with ``optimizer=`` an optax transformation, optax's compiled loop.
+value-and-gradient with the metric values at every payload (the 2R test problem: 10.5 s
+to compile, 21 s with optax's loop, which inlines the motion factory at every call
+site); with ``optimizer=`` an optax transformation, optax's compiled loop.
 
 References:
     Briot, Arakelian & Le Baron (2012), §2 (trajectory parameters of COM planning);
@@ -39,6 +38,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._src.base_vibration import refuse_rescaled_times
 from jaxbal._src.design import CONSTRAINT_PENALTY, FEASIBILITY_RTOL
 from jaxbal._src.design_loss import (
     _bounds,
@@ -83,8 +83,7 @@ class JointSolution(NamedTuple):
         feasible: every constraint satisfied within :data:`FEASIBILITY_RTOL`.
         converged, steps, grad_norm, history, at_bound: as
             :class:`jaxbal.design.DesignSolution` (``at_bound``: the design variables).
-        trajectory_at_bound: ``at_bound`` of the trajectory variables (e.g. a move
-            time on its lower bound: the fastest move allowed was chosen).
+        trajectory_at_bound: ``at_bound`` of the trajectory variables (θ).
     """
 
     design: dict[str, Array]
@@ -276,6 +275,7 @@ def joint_codesign(
     theta0 = {k: jnp.asarray(v, float) for k, v in trajectory.items()}
     lows, highs, two_sided = _bounds(robot, free, lower, upper)
     everything = terms + tuple(m for m in constrained if m not in terms)
+    refuse_rescaled_times(everything, theta0)
     columns = [(terms + constrained).index(m) for m in everything]
     n = len(terms)
     where = np.asarray([everything.index(m) for m in constrained], int)

@@ -1,0 +1,313 @@
+"""The vibration of the base excited by the shaking wrench: what balancing is for.
+
+A robot's shaking force and moment excite the frame it stands on; the frame's
+vibration, during the move and after it (the *residual* vibration, which sets how long
+a pick-and-place cell waits before the next operation), is what balancing reduces in
+the end. The base is a linear modal model (:class:`BaseModes`), each mode ``j``::
+
+    η̈_j + 2 ζ_j ω_j η̇_j + ω_j² η_j = b_j · w(t),     ω_j = 2π f_j,
+
+driven by the shaking wrench ``w = (f_sh, m_sh)`` (``(6,)``: force [N], moment about the
+base origin [N·m], :func:`jaxbal.shaking_wrench`), with ``b_j`` the mode's
+participation (its mode shape at the robot's mounting divided by its modal mass): for a
+rigid base of mass ``M`` on springs along x, ``b = (1/M, 0, 0, 0, 0, 0)`` and ``η`` is
+its displacement [m] (:func:`rigid_base`). The base starts at rest.
+
+:func:`base_response` is exact for a wrench linear between the samples (first-order
+hold): each step is the matrix exponential of the mode's state matrix augmented with
+the input and its slope, in the mode's own time ``ω t`` (no cancellation for short
+steps; any damping ``ζ ≥ 0``); the samples need not be equally spaced. After the last
+sample the robot is at rest (the end of a rest-to-rest move: the wrench drops to zero,
+as a bang-bang's deceleration does) and each mode rings freely with the amplitude
+``A_j = sqrt(η_T² + (η̇_T/ω_j)²)``: exactly the amplitude of an undamped mode (then
+``|∫ b_j·w(τ) e^{iωτ} dτ| / ω``, Duhamel), the amplitude its envelope decays from
+otherwise (:func:`residual_amplitude`).
+
+:class:`BaseVibration` is the metric ``(robot, motion) -> scalar`` of co-design,
+sensitivity and sweeps: ``kind="residual"`` the norm of the residual amplitudes
+``sqrt(Σ_j A_j²)``, ``kind="peak"`` the peak ``max_t sqrt(Σ_j η_j(t)²)`` over the
+samples (give modes of one unit — displacements [m] or rotations [rad] — to one metric,
+or weigh two metrics). It needs the motion's sample times, so a motion factory of
+:func:`jaxbal.design.joint_codesign` must sample at exactly those times: a trajectory
+variable ``"duration"``, which rescales them, is refused.
+
+References:
+    Briot, Arakelian & Le Baron (2012), §1 (shaking forces excite the base's
+    vibrations); Van Loan (1978), "Computing integrals involving the matrix
+    exponential", IEEE TAC 23(3) (the augmented exponential).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.scipy.linalg import expm
+
+from jaxbal._src.metrics import _wrench, as_motion
+from jaxbal._src.types import Array, Float, Scalar
+from jaxbal._src.validation import guard, is_traced
+
+__all__ = [
+    "AXES",
+    "BaseModes",
+    "BaseVibration",
+    "base_response",
+    "residual_amplitude",
+    "rigid_base",
+]
+
+#: the wrench components a rigid base's mode can follow (:func:`rigid_base`).
+AXES = ("x", "y", "z", "rx", "ry", "rz")
+
+
+class BaseModes(eqx.Module):
+    """Linear modal model of the base (module doc); arrays are differentiable leaves.
+
+    Attributes:
+        frequency: ``(k,)`` natural frequencies ``f_j`` [Hz], > 0.
+        damping: ``(k,)`` damping ratios ``ζ_j`` [-], ≥ 0.
+        participation: ``(k, 6)`` modal force per unit shaking wrench ``b_j``
+            [1/kg per N, 1/(kg·m²) per N·m for a rigid base].
+    """
+
+    frequency: Float[Array, " k"]
+    damping: Float[Array, " k"]
+    participation: Float[Array, "k 6"]
+
+    def __init__(self, frequency, damping, participation):
+        self.frequency = jnp.atleast_1d(jnp.asarray(frequency, dtype=float))
+        if self.frequency.ndim != 1:
+            raise ValueError(f"frequency must be a (k,) array, got shape {self.frequency.shape}")
+        k = self.frequency.shape[0]
+        self.damping = jnp.broadcast_to(jnp.asarray(damping, dtype=float), (k,))
+        participation = jnp.asarray(participation, dtype=float)
+        if participation.shape != (k, 6):
+            raise ValueError(
+                f"participation must have shape ({k}, 6) for {k} modes, got {participation.shape}"
+            )
+        self.participation = participation
+        if not is_traced(self):
+            _checked(self)
+
+
+def rigid_base(
+    mass: float,
+    frequency,
+    damping=0.02,
+    axes: Sequence[str] = ("x", "y"),
+    inertia=None,
+) -> BaseModes:
+    """A rigid base on springs: one mode per axis of ``axes`` (of :data:`AXES`), whose
+    ``η`` is the base's displacement [m] along a translation axis or its rotation [rad]
+    about a rotation axis.
+
+    Args:
+        mass: the base's mass ``M`` [kg] (translation axes: ``b = e_axis / M``).
+        frequency: natural frequency [Hz], one or one per axis.
+        damping: damping ratio [-], one or one per axis.
+        axes: e.g. ``("x", "y")`` or ``("x", "y", "rz")``.
+        inertia: the base's moment of inertia [kg·m²] about each rotation axis (one or
+            one per rotation axis), needed if ``axes`` has one.
+    """
+    axes = (axes,) if isinstance(axes, str) else tuple(axes)
+    unknown = [a for a in axes if a not in AXES]
+    if unknown or not axes or len(set(axes)) != len(axes):
+        raise ValueError(f"axes must be distinct names of {AXES}, got {axes!r}")
+    rotations = [a for a in axes if a.startswith("r")]
+    if rotations and inertia is None:
+        raise ValueError(f"rotation axes {rotations} need the base's inertia [kg·m²]")
+    inertias = np.broadcast_to(np.asarray(inertia if rotations else 1.0, float), (len(rotations),))
+    moduli = {"mass": np.asarray(mass, float), "inertia": inertias}
+    for name, value in moduli.items():
+        if not np.all(np.isfinite(value) & (value > 0)):
+            raise ValueError(f"the base's {name} must be finite and > 0, got {value!r}")
+    participation = np.zeros((len(axes), 6))
+    for j, axis in enumerate(axes):
+        rotation = axis.startswith("r")
+        modal_mass = inertias[rotations.index(axis)] if rotation else float(mass)
+        participation[j, AXES.index(axis)] = 1.0 / modal_mass
+    frequency = np.broadcast_to(np.asarray(frequency, float), (len(axes),))
+    return BaseModes(frequency, damping, participation)
+
+
+def _invalid(base: BaseModes):
+    """``(invalid (k,), message, offending)`` of each check of a base."""
+    return (
+        (~(jnp.isfinite(base.frequency) & (base.frequency > 0)), "base frequencies must be "
+         "finite and > 0 [Hz]", base.frequency),
+        (~(jnp.isfinite(base.damping) & (base.damping >= 0)), "base damping ratios must be "
+         "finite and >= 0", base.damping),
+        (~jnp.all(jnp.isfinite(base.participation), axis=-1), "base participations must be "
+         "finite", base.participation),
+    )  # fmt: skip
+
+
+def _checked(base: BaseModes) -> BaseModes:
+    """``base``, checked (eagerly ``ValueError``, under ``jit`` a runtime error)."""
+    frequency = base.frequency
+    for invalid, message, offending in _invalid(base):
+        frequency = guard(frequency, invalid, message, offending)
+    return eqx.tree_at(lambda b: b.frequency, base, frequency)
+
+
+def _checked_times(times) -> Array:
+    times = jnp.asarray(times, dtype=float)
+    if times.ndim != 1 or times.shape[0] < 2:
+        raise ValueError(f"times must be a (t,) array of >= 2 instants, got shape {times.shape}")
+    steps = jnp.diff(times)
+    invalid = ~(jnp.all(jnp.isfinite(times)) & (steps > 0))
+    return guard(times, invalid, "times must be finite and strictly increasing [s]", steps)
+
+
+def _stacked(force, moment, count: int) -> Array:
+    """The ``(t, 6)`` wrench of ``(t, 3)`` force and moment samples."""
+    wrench = jnp.concatenate([jnp.asarray(force, float), jnp.asarray(moment, float)], axis=-1)
+    if wrench.shape != (count, 6):
+        raise ValueError(
+            f"force and moment must each have shape ({count}, 3) (one per time), got "
+            f"{jnp.shape(force)} and {jnp.shape(moment)}"
+        )
+    return wrench
+
+
+def _step_matrices(zeta: Scalar, spans: Float[Array, " s"]) -> Float[Array, "s 4 4"]:
+    """``exp(A H)`` for each step ``H = ω h`` of a mode in its own time ``ω t``, state
+    ``(η, η̇/ω, u/ω², u̇/ω³)`` (the input and its slope, first-order hold)."""
+    a = jnp.zeros((4, 4)).at[0, 1].set(1.0).at[1, 0].set(-1.0).at[1, 2].set(1.0)
+    a = a.at[1, 1].set(-2.0 * zeta).at[2, 3].set(1.0)
+    return jax.vmap(lambda span: expm(a * span))(spans)
+
+
+def _scaled_response(base: BaseModes, times, wrench):
+    """``(x (t, k), y (t, k))``: ``η`` and ``η̇/ω``."""
+    omega = 2.0 * jnp.pi * base.frequency
+    p = (wrench @ base.participation.T) / omega**2
+    spans = jnp.diff(times)[:, None] * omega  # (t - 1, k)
+    steps = jax.vmap(_step_matrices, in_axes=(0, 1), out_axes=1)(base.damping, spans)
+    slopes = jnp.diff(p, axis=0) / spans
+
+    def advance(state, inputs):
+        step, p_now, slope = inputs
+        state = (
+            jnp.einsum("kij,kj->ki", step[:, :2, :2], state)
+            + step[:, :2, 2] * p_now[:, None]
+            + step[:, :2, 3] * slope[:, None]
+        )
+        return state, state
+
+    rest = jnp.zeros((base.frequency.shape[0], 2))
+    _, states = jax.lax.scan(advance, rest, (steps, p[:-1], slopes))
+    states = jnp.concatenate([rest[None], states])
+    return states[..., 0], states[..., 1]
+
+
+#: :func:`_scaled_response` as one compiled program (eagerly, each of its operations
+#: would be a dispatch and a compilation of its own); inlined when traced.
+_response = jax.jit(_scaled_response)
+
+
+def _prepared(base: BaseModes, times, force, moment):
+    times = _checked_times(times)
+    return _checked(base), times, _stacked(force, moment, times.shape[0])
+
+
+def base_response(
+    base: BaseModes, times: Float[Array, " t"], force: Float[Array, "t 3"], moment
+) -> tuple[Float[Array, "t k"], Float[Array, "t k"]]:
+    """The base's modal displacements ``η`` and velocities ``η̇`` at ``times`` (module
+    doc), from rest, driven by the shaking wrench sampled at ``times``.
+
+    Args:
+        base: a :class:`BaseModes`.
+        times: ``(t,)`` strictly increasing instants [s].
+        force, moment: ``(t, 3)`` shaking force [N] and moment [N·m] at ``times``.
+
+    Raises:
+        ValueError: a non-positive or non-finite frequency, a negative damping ratio,
+            times not strictly increasing, wrong shapes (under ``jit``: a runtime error).
+    """
+    base, times, wrench = _prepared(base, times, force, moment)
+    x, y = _response(base, times, wrench)
+    return x, y * (2.0 * jnp.pi * base.frequency)
+
+
+def residual_amplitude(
+    base: BaseModes, times: Float[Array, " t"], force: Float[Array, "t 3"], moment
+) -> Float[Array, " k"]:
+    """Each mode's amplitude after the last sample, the robot then at rest (module doc):
+    ``sqrt(η_T² + (η̇_T/ω)²)``. Same arguments and errors as :func:`base_response`."""
+    base, times, wrench = _prepared(base, times, force, moment)
+    x, y = _response(base, times, wrench)
+    return _norm(jnp.stack([x[-1], y[-1]], axis=-1))
+
+
+def _norm(vectors):
+    """``‖v‖`` over the last axis with a zero (not NaN) gradient at ``v = 0``."""
+    square = jnp.sum(vectors**2, axis=-1)
+    positive = square > 0.0
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, square, 1.0)), 0.0)
+
+
+class BaseVibration(eqx.Module):
+    """The base's residual (``kind="residual"``) or peak (``"peak"``) vibration along a
+    motion sampled at ``times``, a metric ``(robot, motion) -> scalar`` (module doc), in
+    the unit of the modes' ``η`` (m for :func:`rigid_base`'s translations).
+
+    Its fields are static (it is hashable, a key of an objective dict; equal metrics
+    share one compilation); :func:`base_response` differentiates the base itself.
+    """
+
+    frequency: tuple[float, ...] = eqx.field(static=True)
+    damping: tuple[float, ...] = eqx.field(static=True)
+    participation: tuple[tuple[float, ...], ...] = eqx.field(static=True)
+    times: tuple[float, ...] = eqx.field(static=True)
+    kind: str = eqx.field(static=True)
+
+    def __init__(self, base: BaseModes, times, kind: str = "residual"):
+        if kind not in ("residual", "peak"):
+            raise ValueError(f"kind must be 'residual' or 'peak', got {kind!r}")
+        if is_traced(base, times):
+            raise ValueError("BaseVibration needs concrete base and times (build it outside jit)")
+        base, times = _checked(base), np.asarray(_checked_times(times))
+        self.frequency = tuple(float(f) for f in np.asarray(base.frequency))
+        self.damping = tuple(float(z) for z in np.asarray(base.damping))
+        self.participation = tuple(tuple(float(b) for b in row) for row in base.participation)
+        self.times, self.kind = tuple(float(t) for t in times), kind
+
+    @property
+    def __name__(self) -> str:
+        return f"{self.kind}_vibration"
+
+    @property
+    def base(self) -> BaseModes:
+        """The base, as a :class:`BaseModes`."""
+        return BaseModes(self.frequency, self.damping, self.participation)
+
+    def __call__(self, robot, motion) -> Scalar:
+        motion = as_motion(motion)
+        if motion.q.shape[0] != len(self.times):
+            raise ValueError(
+                f"the motion has {motion.q.shape[0]} samples but this {self.__name__} metric "
+                f"{len(self.times)} times: sample the motion at its times"
+            )
+        force, moment = _wrench(robot, motion)
+        times = jnp.asarray(self.times)
+        x, y = _response(self.base, times, jnp.concatenate([force, moment], axis=-1))
+        if self.kind == "peak":
+            return jnp.max(_norm(x))
+        return _norm(_norm(jnp.stack([x[-1], y[-1]], axis=-1)))
+
+
+def refuse_rescaled_times(metrics, trajectory) -> None:
+    """Refuse a :class:`BaseVibration` with a trajectory variable ``"duration"`` (module
+    doc): the factory's samples would no longer be at the metric's times."""
+    if "duration" in trajectory and any(isinstance(m, BaseVibration) for m in metrics):
+        raise ValueError(
+            "a BaseVibration metric needs the motion at its fixed times, but the trajectory "
+            "variable 'duration' rescales them: optimise at a fixed cycle time (one "
+            "joint_codesign per duration)"
+        )

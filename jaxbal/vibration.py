@@ -1,0 +1,9 @@
+"""The base's vibration excited by the shaking wrench: a linear modal model of the
+frame the robot stands on, its exact response to a sampled wrench, and the residual
+and peak vibration as metrics of co-design, sensitivity and sweeps.
+
+See :mod:`jaxbal._src.base_vibration` (model, discretisation, references).
+"""
+
+from jaxbal._src.base_vibration import *  # noqa: F403
+from jaxbal._src.base_vibration import __all__  # noqa: F401

@@ -1,0 +1,227 @@
+"""The base's vibration (jaxbal.vibration): exact against closed forms of a single
+mode (step, ramp at uneven times, overdamped step), the residual amplitude against an
+independent Fourier integral of the shaking force, a force-balanced arm leaving the
+base still, gradients against finite differences, vmap against a loop, co-design of
+the residual vibration, and every bad input refused."""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from jax.test_util import check_grads
+
+import jaxbal
+from jaxbal.planning import com_line
+from jaxbal.profiles import BangBang
+from jaxbal.robots.planar_arm import force_balanced
+from jaxbal.vibration import (
+    BaseModes,
+    BaseVibration,
+    base_response,
+    residual_amplitude,
+    rigid_base,
+)
+
+MASS, FREQUENCY = 200.0, 7.0
+OMEGA = 2 * np.pi * FREQUENCY
+
+
+def _along(axis: int, values):
+    """``(t, 3)`` vectors with ``values`` along ``axis``, and zero ``(t, 3)`` moments."""
+    force = np.zeros((len(values), 3))
+    force[:, axis] = values
+    return force, np.zeros_like(force)
+
+
+def test_step_of_an_undamped_mode_is_one_minus_cosine():
+    """x = F/(M ω²)(1 − cos ωt), ẋ = F/(M ω) sin ωt, exact at any step size."""
+    times = np.linspace(0.0, 0.5, 41)  # ω h ≈ 0.55: far from a fine grid
+    base = rigid_base(MASS, FREQUENCY, 0.0, "x")
+    x, v = base_response(base, times, *_along(0, 10.0 + 0 * times))
+    scale = 10.0 / (MASS * OMEGA**2)
+    expected = scale * (1 - np.cos(OMEGA * times)), scale * OMEGA * np.sin(OMEGA * times)
+    np.testing.assert_allclose(x[:, 0], expected[0], rtol=0, atol=1e-13 * scale)
+    np.testing.assert_allclose(v[:, 0], expected[1], rtol=0, atol=1e-13 * scale * OMEGA)
+
+
+def test_ramp_of_a_damped_mode_at_uneven_times():
+    """Force b·t on a mode with ζ = 0.05: particular solution plus the decaying
+    homogeneous one (closed form), at 50 random instants."""
+    zeta, slope = 0.05, 30.0
+    times = np.sort(np.r_[0.0, np.random.default_rng(0).uniform(0, 0.3, 50), 0.3])
+    x, _ = base_response(rigid_base(MASS, FREQUENCY, zeta, "y"), times, *_along(1, slope * times))
+    sigma, damped = zeta * OMEGA, OMEGA * np.sqrt(1 - zeta**2)
+    a = slope / MASS
+    e0, e0_rate = 2 * zeta * a / OMEGA**3, -a / OMEGA**2  # x(0) − x_p(0), ẋ(0) − ẋ_p(0)
+    decay = np.exp(-sigma * times) * (
+        e0 * np.cos(damped * times) + (e0_rate + sigma * e0) / damped * np.sin(damped * times)
+    )
+    exact = a * times / OMEGA**2 - 2 * zeta * a / OMEGA**3 + decay
+    np.testing.assert_allclose(x[:, 0], exact, rtol=0, atol=1e-12 * np.max(np.abs(exact)))
+
+
+def test_step_of_an_overdamped_rotation_mode():
+    """ζ = 1.5 about z (a base inertia J): θ = m/(J ω²)(1 + (r₂e^{r₁t} − r₁e^{r₂t})/(r₁ − r₂))."""
+    zeta, inertia, torque = 1.5, 40.0, 3.0
+    base = rigid_base(MASS, FREQUENCY, zeta, ("rz",), inertia=inertia)
+    times = np.linspace(0.0, 0.2, 31)
+    moment = np.zeros((31, 3))
+    moment[:, 2] = torque
+    angle, _ = base_response(base, times, np.zeros((31, 3)), moment)
+    r1, r2 = OMEGA * (-zeta + np.sqrt(zeta**2 - 1)), OMEGA * (-zeta - np.sqrt(zeta**2 - 1))
+    static = torque / (inertia * OMEGA**2)
+    exact = static * (1 + (r2 * np.exp(r1 * times) - r1 * np.exp(r2 * times)) / (r1 - r2))
+    np.testing.assert_allclose(angle[:, 0], exact, rtol=0, atol=1e-12 * static)
+
+
+@pytest.fixture(scope="module")
+def move():
+    """The 2R's P5→P9 COM bang-bang move (Briot et al. 2012), 401 samples in 0.5 s."""
+    arm = jaxbal.robots.planar_2r()
+    q0 = arm.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
+    q1 = arm.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
+    times = jaxbal.sample_times(0.5, 401)
+    motion = jaxbal.design.motion_samples(arm, [com_line(arm, q0, q1, BangBang(), 0.5)], times)
+    return arm, np.asarray(times), motion
+
+
+def _force(robot, motion):
+    run = jax.vmap(lambda a, b, c: jaxbal.shaking_wrench(robot, a, b, c))
+    return [np.asarray(part) for part in run(*motion)]
+
+
+def test_residual_amplitude_is_the_fourier_integral_of_the_force(move):
+    """After a force that ends, an undamped mode from rest rings with amplitude
+    |∫ f(τ) e^{iωτ} dτ| / (M ω) (Duhamel): the integral of the sampled shaking force
+    (linear between samples) by a 10⁵-point trapezoid rule, for x and y at 5 and 9 Hz.
+    The metric is the norm of the two, and ``kind="peak"`` the largest sampled ‖η‖."""
+    arm, times, motion = move
+    force, moment = _force(arm, motion)
+    base = rigid_base(300.0, [5.0, 9.0], 0.0, ("x", "y"))
+    ours = np.asarray(residual_amplitude(base, times, force, moment))
+    fine = np.linspace(0.0, times[-1], 100_001)
+    expected = []
+    for axis, frequency in ((0, 5.0), (1, 9.0)):
+        omega = 2 * np.pi * frequency
+        integrand = np.interp(fine, times, force[:, axis]) * np.exp(1j * omega * fine)
+        expected.append(abs(np.trapezoid(integrand, fine)) / (300.0 * omega))
+    np.testing.assert_allclose(ours, expected, rtol=1e-8)
+    residual = BaseVibration(base, times)(arm, motion)
+    assert float(residual) == pytest.approx(np.hypot(*ours), rel=1e-12)
+    x, _ = base_response(base, times, force, moment)
+    peak = BaseVibration(base, times, "peak")
+    assert float(peak(arm, motion)) == pytest.approx(np.max(np.hypot(x[:, 0], x[:, 1])), rel=1e-12)
+    assert peak.__name__ == "peak_vibration" and float(peak(arm, motion)) > 0
+
+
+def test_a_force_balanced_arm_leaves_the_base_still(move):
+    """Counterweights by the closed form (Briot et al. 2012, eq 23): zero shaking force,
+    so the translational modes neither move nor ring (1e-12 of the unbalanced arm's)."""
+    arm, times, motion = move
+    balanced = force_balanced(arm, jnp.array([0.2, 0.2]))
+    base = rigid_base(300.0, [5.0, 9.0], 0.02, ("x", "y"))
+    for kind in ("residual", "peak"):
+        metric = BaseVibration(base, times, kind)
+        assert float(metric(balanced, motion)) < 1e-12 * float(metric(arm, motion))
+
+
+def test_gradients_match_finite_differences_and_vmap_is_a_loop(move):
+    """d/d(frequency, damping, participation) of the response by check_grads; the
+    metric's gradient w.r.t. the counter-masses agrees with central differences
+    (sensitivity(check=True)) and is finite; a vmap over base frequencies equals a loop."""
+    arm, times, motion = move
+    force, moment = _force(arm, motion)
+    t, f, m = times[:80], force[:80], moment[:80]
+
+    def response(frequency, damping, participation):
+        base = BaseModes(frequency, damping, participation)
+        return residual_amplitude(base, t, f, m) + base_response(base, t, f, m)[0][-1]
+
+    base = rigid_base(300.0, [5.0, 9.0], 0.03, ("x", "y"))
+    check_grads(response, (base.frequency, base.damping, base.participation), order=1,
+                modes=("fwd", "rev"), rtol=1e-5)  # fmt: skip
+    metric = BaseVibration(base, times)
+    study = jaxbal.sensitivity.sensitivity(arm, motion, metric, wrt=("counter_mass",), check=True)
+    assert np.all(np.isfinite(study.gradient["counter_mass"]))
+
+    def amplitude(frequency):
+        modes = rigid_base(300.0, 1.0, 0.03, ("x", "y"))
+        modes = eqx.tree_at(lambda b: b.frequency, modes, jnp.stack([frequency, 2 * frequency]))
+        return residual_amplitude(modes, times, force, moment)
+
+    frequencies = jnp.array([3.0, 5.5, 11.0])
+    swept = jax.jit(jax.vmap(amplitude))(frequencies)
+    looped = np.stack([np.asarray(amplitude(fr)) for fr in frequencies])
+    np.testing.assert_allclose(swept, looped, rtol=1e-12)
+
+
+def test_codesign_of_the_residual_vibration(move):
+    """Counter-masses co-designed against the residual vibration of a 4 Hz base (a
+    hashable metric, a key of the objective): it falls by ≥ 10³, and the design variable
+    bounds still hold."""
+    arm, times, motion = move
+    metric = BaseVibration(rigid_base(300.0, 4.0, 0.02, ("x", "y")), times)
+    assert metric == BaseVibration(rigid_base(300.0, 4.0, 0.02, ("x", "y")), times)
+    best = jaxbal.design.codesign(arm, motion, {metric: 1.0},
+                                  upper={"counter_distance": 0.3})  # fmt: skip
+    before, after = best.metrics["residual_vibration"]
+    assert after < 1e-3 * before
+    assert np.all(best.design["counter_mass"] >= 0)
+
+
+SHAPE = "shape \\(2, 6\\)"
+BAD = {
+    "frequency <= 0": (lambda: BaseModes([5.0, -1.0], 0.0, np.ones((2, 6))), "frequencies"),
+    "negative damping": (lambda: BaseModes(5.0, -0.1, np.ones((1, 6))), "damping"),
+    "participation shape": (lambda: BaseModes([5.0, 6.0], 0.0, np.ones((2, 3))), SHAPE),
+    "non-finite participation": (lambda: BaseModes(5.0, 0.0, np.full((1, 6), np.nan)), "finite"),
+    "unknown axis": (lambda: rigid_base(100.0, 5.0, axes=("x", "w")), "axes must be distinct"),
+    "rotation without inertia": (lambda: rigid_base(100.0, 5.0, axes="rz"), "the base's inertia"),
+    "negative mass": (lambda: rigid_base(-1.0, 5.0), "mass must be finite and > 0"),
+    "times not increasing": (
+        lambda: base_response(rigid_base(100.0, 5.0), [0.0, 0.2, 0.1], *_along(0, [1.0, 1, 1])),
+        "strictly increasing",
+    ),
+    "force shape": (
+        lambda: base_response(rigid_base(100.0, 5.0), [0.0, 0.1], np.ones((3, 3)), np.ones((3, 3))),
+        "shape \\(2, 3\\)",
+    ),
+    "kind": (lambda: BaseVibration(rigid_base(100.0, 5.0), [0.0, 1.0], "rms"), "kind must be"),
+}  # fmt: skip
+
+
+@pytest.mark.parametrize("case", sorted(BAD))
+def test_bad_input_is_refused(case):
+    make, message = BAD[case]
+    with pytest.raises(ValueError, match=message):
+        make()
+
+
+def test_refused_under_jit_and_in_a_motion_of_other_times(move):
+    """A frequency made negative by ``eqx.tree_at`` inside ``jit`` raises at run time; a
+    motion sampled at other times, and a joint co-design that rescales them, are refused."""
+    arm, times, motion = move
+    base = rigid_base(300.0, 5.0)
+    force, moment = _force(arm, motion)
+
+    @jax.jit
+    def spoiled(scale):
+        modes = eqx.tree_at(lambda b: b.frequency, base, base.frequency * scale)
+        return residual_amplitude(modes, times, force, moment)
+
+    assert np.all(np.isfinite(spoiled(1.0)))
+    with pytest.raises(Exception, match="base frequencies must be finite and > 0"):
+        spoiled(-1.0).block_until_ready()
+    with pytest.raises(ValueError, match="the motion has 401 samples but"):
+        BaseVibration(base, times[:100])(arm, motion)
+    factory = jaxbal.design.TrapezoidLine(
+        jnp.array([0.225, 0.25]), jnp.array([0.225, 0.70]), jaxbal.sample_times(1.0, 401)
+    )
+    theta = {"u2": jnp.asarray(0.3), "ratio": jnp.asarray(0.5), "duration": jnp.asarray(0.5)}
+    with pytest.raises(ValueError, match="'duration' rescales them"):
+        jaxbal.design.joint_codesign(
+            arm, factory, theta, BaseVibration(base, times),
+            trajectory_lower={k: 0.5 * v for k, v in theta.items()},
+            trajectory_upper={k: 1.5 * v for k, v in theta.items()},
+        )  # fmt: skip
