@@ -19,6 +19,7 @@ from jaxbal.vibration import (
     BaseModes,
     BaseVibration,
     base_response,
+    carrying,
     residual_amplitude,
     rigid_base,
 )
@@ -141,7 +142,7 @@ def test_gradients_match_finite_differences_and_vmap_is_a_loop(move):
     base = rigid_base(300.0, [5.0, 9.0], 0.03, ("x", "y"))
     check_grads(response, (base.frequency, base.damping, base.participation), order=1,
                 modes=("fwd", "rev"), rtol=1e-5)  # fmt: skip
-    metric = BaseVibration(base, times)
+    metric = BaseVibration(base, times, carries_robot=True)  # the counter-masses ride too
     study = jaxbal.sensitivity.sensitivity(arm, motion, metric, wrt=("counter_mass",), check=True)
     assert np.all(np.isfinite(study.gradient["counter_mass"]))
 
@@ -188,6 +189,17 @@ BAD = {
         "shape \\(2, 3\\)",
     ),
     "kind": (lambda: BaseVibration(rigid_base(100.0, 5.0), [0.0, 1.0], "rms"), "kind must be"),
+    "carrying a rotation": (
+        lambda: carrying(rigid_base(100.0, 5.0, axes=("x", "rz"), inertia=3.0), 10.0),
+        "translation modes only",
+    ),
+    "carried rotation": (
+        lambda: BaseVibration(
+            rigid_base(100.0, 5.0, axes="rz", inertia=3.0), [0.0, 1.0], carries_robot=True
+        ),
+        "translation modes only",
+    ),
+    "negative carried mass": (lambda: carrying(rigid_base(100.0, 5.0), -1.0), "carried mass"),
 }  # fmt: skip
 
 
@@ -225,3 +237,70 @@ def test_refused_under_jit_and_in_a_motion_of_other_times(move):
             trajectory_lower={k: 0.5 * v for k, v in theta.items()},
             trajectory_upper={k: 1.5 * v for k, v in theta.items()},
         )  # fmt: skip
+
+
+def test_a_base_on_springs_in_mujoco_moves_as_predicted():
+    """Independent check by MuJoCo C: the 2R (quintic end-effector line) on a 250 kg base
+    on x and y slide joints with stiffness and damping. The base's acceleration comes
+    from MuJoCo's own dynamics of the whole system (``mj_inverse`` with the joint motion
+    prescribed and the base's generalised force zero), integrated by RK4. For a
+    translating base the model is exact when its mass includes the robot's (the robot
+    rides on it): the displacements agree to 1e-5 (the first-order hold of the sampled
+    force); the base's mass alone would be 25 % off."""
+    import mujoco
+
+    from jaxbal.mujoco import export_mjcf
+    from jaxbal.profiles import Quintic
+
+    arm = jaxbal.robots.planar_2r()
+    q0 = arm.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
+    q1 = arm.inverse_kinematics(jnp.array([0.3, 0.70]), branch=-1)
+    line = jaxbal.StraightLine(arm.end_effector(q0), arm.end_effector(q1), Quintic(), 0.5)
+    fine = jaxbal.sample_times(0.5, 4001)  # RK4 evaluates at every second sample's midpoint
+    motion = jaxbal.design.motion_samples(arm, [jaxbal.planning.EndEffectorLine(arm, line)], fine)
+    q, qd, qdd = (np.asarray(part) for part in motion)
+    spec = mujoco.MjSpec.from_string(export_mjcf(arm))
+    mass, stiffness, damping = 250.0, 4.0e5, 300.0
+    carrier = spec.body("base")
+    carrier.mass, carrier.inertia = mass, [1.0, 1.0, 1.0]
+    for axis in ([1.0, 0, 0], [0, 1.0, 0]):
+        joint = carrier.add_joint()
+        joint.type, joint.axis = mujoco.mjtJoint.mjJNT_SLIDE, axis
+        joint.stiffness, joint.damping = [stiffness, 0, 0], [damping, 0, 0]
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    full = np.zeros((model.nv, model.nv))
+
+    def rate(k, state):
+        data.qpos[:], data.qvel[:] = np.r_[state[:2], q[k]], np.r_[state[2:], qd[k]]
+        data.qacc[:] = np.r_[0.0, 0.0, qdd[k]]
+        mujoco.mj_inverse(model, data)
+        mujoco.mj_fullM(model, data, full)
+        return np.r_[state[2:], -np.linalg.solve(full[:2, :2], data.qfrc_inverse[:2])]
+
+    state, path, h = np.zeros(4), [np.zeros(2)], float(fine[2] - fine[0])
+    for k in range(0, len(fine) - 1, 2):
+        k1 = rate(k, state)
+        k2 = rate(k + 1, state + h / 2 * k1)
+        k3 = rate(k + 1, state + h / 2 * k2)
+        state = state + h / 6 * (k1 + 2 * k2 + 2 * k3 + rate(k + 2, state + h * k3))
+        path.append(state[:2])
+    path = np.asarray(path)
+    force, moment = _force(arm, (q[::2], qd[::2], qdd[::2]))
+
+    omega = np.sqrt(stiffness / mass)
+    alone = rigid_base(mass, omega / (2 * np.pi), damping / (2 * mass * omega), ("x", "y"))
+
+    def displacement(base):
+        return np.asarray(base_response(base, np.asarray(fine[::2]), force, moment)[0])
+
+    scale = np.max(np.abs(path))
+    assert scale > 1e-4  # m: the move shakes the base
+    riding = carrying(alone, jaxbal.total_mass(arm))
+    assert np.max(np.abs(displacement(riding) - path)) < 1e-5 * scale
+    assert np.max(np.abs(displacement(alone) - path)) > 0.1 * scale
+    motion = (q[::2], qd[::2], qdd[::2])
+    for kind in ("residual", "peak"):
+        metric = BaseVibration(alone, fine[::2], kind, carries_robot=True)
+        ours = BaseVibration(riding, fine[::2], kind)(arm, motion)
+        assert float(metric(arm, motion)) == pytest.approx(float(ours), rel=1e-13)

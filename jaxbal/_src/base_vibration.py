@@ -13,6 +13,18 @@ participation (its mode shape at the robot's mounting divided by its modal mass)
 rigid base of mass ``M`` on springs along x, ``b = (1/M, 0, 0, 0, 0, 0)`` and ``η`` is
 its displacement [m] (:func:`rigid_base`). The base starts at rest.
 
+The robot rides on the base: for a translating base ``(M_base + m_robot) ẍ + c ẋ + k x
+= f_sh`` exactly (the shaking force on a fixed base, the joint motion prescribed relative
+to the base; tested against MuJoCo C's dynamics of the whole system, where ``M_base``
+alone is 25 % off). So either give the modes as measured with the robot mounted, or the
+base alone and let the robot's mass ride on it: :func:`carrying` (and
+``BaseVibration(..., carries_robot=True)``, which adds the robot's total mass at every
+evaluation, so that co-designed counter-masses and swept payloads load the base too)
+keeps each translation mode's stiffness and damping coefficient and adds the mass. A
+rotation mode's inertia changes with the robot's configuration: give it with the robot
+mounted (a constant modal inertia is then an approximation, good for a base much
+heavier or stiffer than the robot); :func:`carrying` refuses it.
+
 :func:`base_response` is exact for a wrench linear between the samples (first-order
 hold): each step is the matrix exponential of the mode's state matrix augmented with
 the input and its slope, in the mode's own time ``ω t`` (no cancellation for short
@@ -48,6 +60,7 @@ import numpy as np
 from jax.scipy.linalg import expm
 
 from jaxbal._src.metrics import _wrench, as_motion
+from jaxbal._src.momentum import total_mass
 from jaxbal._src.types import Array, Float, Scalar
 from jaxbal._src.validation import guard, is_traced
 
@@ -56,6 +69,7 @@ __all__ = [
     "BaseModes",
     "BaseVibration",
     "base_response",
+    "carrying",
     "residual_amplitude",
     "rigid_base",
 ]
@@ -106,12 +120,13 @@ def rigid_base(
     about a rotation axis.
 
     Args:
-        mass: the base's mass ``M`` [kg] (translation axes: ``b = e_axis / M``).
-        frequency: natural frequency [Hz], one or one per axis.
+        mass: the mass ``M`` [kg] moving with the base (module doc: with the robot, or
+            alone and then :func:`carrying`; translation axes: ``b = e_axis / M``).
+        frequency: natural frequency [Hz] of that mass, one or one per axis.
         damping: damping ratio [-], one or one per axis.
         axes: e.g. ``("x", "y")`` or ``("x", "y", "rz")``.
-        inertia: the base's moment of inertia [kg·m²] about each rotation axis (one or
-            one per rotation axis), needed if ``axes`` has one.
+        inertia: moment of inertia [kg·m²] about each rotation axis (one or one per
+            rotation axis), the robot's included, needed if ``axes`` has one.
     """
     axes = (axes,) if isinstance(axes, str) else tuple(axes)
     unknown = [a for a in axes if a not in AXES]
@@ -132,6 +147,33 @@ def rigid_base(
         participation[j, AXES.index(axis)] = 1.0 / modal_mass
     frequency = np.broadcast_to(np.asarray(frequency, float), (len(axes),))
     return BaseModes(frequency, damping, participation)
+
+
+def carrying(base: BaseModes, mass) -> BaseModes:
+    """``base`` with ``mass`` [kg] riding on it (the robot, module doc): each mode's
+    modal mass ``M_j = 1/‖b_j‖`` grows to ``M_j + mass``, its stiffness ``ω_j² M_j`` and
+    damping coefficient ``2 ζ_j ω_j M_j`` kept. Differentiable in ``mass`` and the base.
+
+    Raises:
+        ValueError: a mode with moment participation (a rotation: its inertia depends on
+            the robot's configuration), a negative or non-finite mass.
+    """
+    rotating = jnp.any(base.participation[:, 3:] != 0.0, axis=-1)
+    base = eqx.tree_at(
+        lambda b: b.participation,
+        base,
+        guard(base.participation, rotating, "carrying() takes translation modes only: "
+              "give rotation modes with the robot mounted", base.participation),
+    )  # fmt: skip
+    mass = jnp.asarray(mass, dtype=float)
+    mass = guard(mass, ~(jnp.isfinite(mass) & (mass >= 0)), "carried mass must be finite "
+                 "and >= 0 [kg]", mass)  # fmt: skip
+    own = 1.0 / jnp.linalg.norm(base.participation[:, :3], axis=-1)
+    ratio = own / (own + mass)
+    root = jnp.sqrt(ratio)
+    return BaseModes(
+        base.frequency * root, base.damping * root, base.participation * ratio[:, None]
+    )
 
 
 def _invalid(base: BaseModes):
@@ -255,7 +297,9 @@ def _norm(vectors):
 class BaseVibration(eqx.Module):
     """The base's residual (``kind="residual"``) or peak (``"peak"``) vibration along a
     motion sampled at ``times``, a metric ``(robot, motion) -> scalar`` (module doc), in
-    the unit of the modes' ``η`` (m for :func:`rigid_base`'s translations).
+    the unit of the modes' ``η`` (m for :func:`rigid_base`'s translations);
+    ``carries_robot``: ``base`` is the base alone, the robot's total mass (counter-masses
+    and payload included) rides on it (:func:`carrying`).
 
     Its fields are static (it is hashable, a key of an objective dict; equal metrics
     share one compilation); :func:`base_response` differentiates the base itself.
@@ -266,8 +310,9 @@ class BaseVibration(eqx.Module):
     participation: tuple[tuple[float, ...], ...] = eqx.field(static=True)
     times: tuple[float, ...] = eqx.field(static=True)
     kind: str = eqx.field(static=True)
+    carries_robot: bool = eqx.field(static=True)
 
-    def __init__(self, base: BaseModes, times, kind: str = "residual"):
+    def __init__(self, base: BaseModes, times, kind: str = "residual", carries_robot=False):
         if kind not in ("residual", "peak"):
             raise ValueError(f"kind must be 'residual' or 'peak', got {kind!r}")
         if is_traced(base, times):
@@ -277,6 +322,9 @@ class BaseVibration(eqx.Module):
         self.damping = tuple(float(z) for z in np.asarray(base.damping))
         self.participation = tuple(tuple(float(b) for b in row) for row in base.participation)
         self.times, self.kind = tuple(float(t) for t in times), kind
+        self.carries_robot = bool(carries_robot)
+        if self.carries_robot:
+            carrying(base, 0.0)  # a rotation mode is refused here, not at the first call
 
     @property
     def __name__(self) -> str:
@@ -295,8 +343,8 @@ class BaseVibration(eqx.Module):
                 f"{len(self.times)} times: sample the motion at its times"
             )
         force, moment = _wrench(robot, motion)
-        times = jnp.asarray(self.times)
-        x, y = _response(self.base, times, jnp.concatenate([force, moment], axis=-1))
+        base = carrying(self.base, total_mass(robot)) if self.carries_robot else self.base
+        x, y = _response(base, jnp.asarray(self.times), jnp.concatenate([force, moment], -1))
         if self.kind == "peak":
             return jnp.max(_norm(x))
         return _norm(_norm(jnp.stack([x[-1], y[-1]], axis=-1)))
