@@ -304,3 +304,16 @@ def test_a_base_on_springs_in_mujoco_moves_as_predicted():
         metric = BaseVibration(alone, fine[::2], kind, carries_robot=True)
         ours = BaseVibration(riding, fine[::2], kind)(arm, motion)
         assert float(metric(arm, motion)) == pytest.approx(float(ours), rel=1e-13)
+
+
+def test_a_payload_sweep_loads_the_base(move):
+    """``jaxbal.sweep`` of the residual vibration over the payload (riding on the base,
+    ``carries_robot=True``): each point equals the metric of that robot, in metres."""
+    arm, times, motion = move
+    metric = BaseVibration(rigid_base(300.0, 5.0, 0.02, ("x", "y")), times, carries_robot=True)
+    payloads = np.array([0.0, 2.0, 5.0])
+    ds = jaxbal.sweep(metric, arm, motion, {"payload": payloads}, progress=False)
+    looped = [float(metric(arm.with_design({"payload": jnp.asarray(p)}), motion)) for p in payloads]
+    np.testing.assert_allclose(ds["value"].values, looped, rtol=1e-12)
+    assert ds["value"].attrs["units"] == "m" and ds.attrs["metric"] == "residual_vibration"
+    assert len(set(np.round(looped, 12))) == 3  # the payload changes it

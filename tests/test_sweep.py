@@ -13,6 +13,7 @@ import subprocess
 import sys
 import textwrap
 
+import equinox as eqx
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -215,6 +216,18 @@ def test_existing_store_needs_resume_and_the_same_sweep(arm, tmp_path):
         "peak_force", robot, motion, {"payload": [0.0, 0.5]}, store=path, resume=True
     )
     np.testing.assert_array_equal(again["value"].values, jaxbal.sweep.open_sweep(path)["value"])
+    # the store's values belong to its robot, motion and metric: a store resumed with
+    # other ones returned the first robot's values as the second's
+    heavier = eqx.tree_at(lambda r: r.counter_masses, robot, robot.counter_masses + 1.0)
+    slower = type(motion)(*(part * 0.5 for part in motion))
+    others = {"robot": (heavier, motion, "peak_force"), "motion": (robot, slower, "peak_force"),
+              "metric": (robot, motion, "rms_force")}  # fmt: skip
+    for r, m, metric in others.values():
+        with pytest.raises(ValueError, match="robot, motion, metric or θ differ"):
+            jaxbal.sweep(metric, r, m, {"payload": [0.0, 0.5]}, store=path, resume=True)
+    rebuilt = jaxbal.robots.planar_2r()  # the same robot, built again: resumed
+    assert bool(eqx.tree_equal(rebuilt, robot))
+    jaxbal.sweep("peak_force", rebuilt, motion, {"payload": [0.0, 0.5]}, store=path, resume=True)
 
 
 @pytest.mark.slow

@@ -331,6 +331,12 @@ class BaseVibration(eqx.Module):
         return f"{self.kind}_vibration"
 
     @property
+    def units(self) -> str:
+        """``η``'s unit for a rigid base: m (translation modes), rad (rotation modes)."""
+        moments = [any(row[3:]) for row in self.participation]
+        return "rad" if all(moments) else "m" if not any(moments) else "m or rad"
+
+    @property
     def base(self) -> BaseModes:
         """The base, as a :class:`BaseModes`."""
         return BaseModes(self.frequency, self.damping, self.participation)

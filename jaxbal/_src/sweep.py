@@ -27,7 +27,13 @@ from jaxbal._src.sweep_program import (
     shape_key,
 )
 from jaxbal._src.sweep_run import run_backend
-from jaxbal._src.sweep_store import SweepStore, fingerprint, open_dataset, remove_partial_files
+from jaxbal._src.sweep_store import (
+    SweepStore,
+    fingerprint,
+    inputs_digest,
+    open_dataset,
+    remove_partial_files,
+)
 
 __all__ = [
     "DEFAULT_MEMORY_BUDGET",
@@ -277,7 +283,9 @@ def prepare(
     return axes, program, dynamic, outputs, evaluation
 
 
-def _metadata(metric, robot, axes, outputs, units, output_dims, attrs, evaluation="direct"):
+def _metadata(
+    metric, robot, axes, outputs, units, output_dims, attrs, evaluation="direct", inputs=""
+):
     if isinstance(units, str):
         if len(outputs) != 1:
             raise ValueError(f"units as one string needs one output, got {sorted(outputs)}")
@@ -286,12 +294,18 @@ def _metadata(metric, robot, axes, outputs, units, output_dims, attrs, evaluatio
     unknown = set(units or {}) - set(outputs)
     if unknown:
         raise ValueError(f"units for unknown outputs {sorted(unknown)}; outputs {sorted(outputs)}")
-    if isinstance(metric, str) and not units:
-        units = {n: METRIC_UNITS.get(metric, "") for n in outputs}
+    if not units:  # a named metric's, or a metric object's ``units`` (BaseVibration)
+        unit = (
+            METRIC_UNITS.get(metric, "")
+            if isinstance(metric, str)
+            else getattr(metric, "units", "")
+        )
+        units = {n: unit for n in outputs} if isinstance(unit, str) and unit else units
     base = {"metric": name, "robot": type(robot).__name__}
     if evaluation != "direct":  # part of the fingerprint: a resume never mixes the two
         base["evaluation"] = "affine"
     extra = {"block_outputs": {k: str(v.dtype) for k, v in outputs.items()}, **base}
+    extra["inputs"] = inputs  # the robot, motion, metric and θ (not shown as attributes)
     return {
         "units": dict(units or {}),
         "output_dims": dict(output_dims or {}),
@@ -353,7 +367,8 @@ def sweep(
     axes, program, dynamic, outputs, evaluation = prepare(
         metric, robot, motion, axes, trajectory=trajectory, devices=devices, linear=linear
     )
-    meta = _metadata(metric, robot, axes, outputs, units, output_dims, attrs, evaluation)
+    inputs = inputs_digest(metric, robot, motion, trajectory)
+    meta = _metadata(metric, robot, axes, outputs, units, output_dims, attrs, evaluation, inputs)
     count = program.mesh.size
     sizes = tuple(a.size for a in axes.values())
     path = None if store is None else Path(store)
@@ -363,7 +378,10 @@ def sweep(
         remove_partial_files(path)
         opened = SweepStore.open(path)
         if opened.description["fingerprint"] != meta["fingerprint"]:
-            raise ValueError(f"{path} holds a different sweep (axes, values or outputs differ)")
+            raise ValueError(
+                f"{path} holds a different sweep (its axes, values, outputs, robot, motion, "
+                "metric or θ differ): resume it with the same inputs, or write a new store"
+            )
     else:
         if chunk_size is None:
             first, _ = Chunks(axes, Layout.for_chunk(sizes, 1), 1).params(0)

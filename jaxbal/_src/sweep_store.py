@@ -14,20 +14,25 @@ Layout (zarr format 3, readable by ``xarray.open_zarr(path, consolidated=False)`
   leaves a store whose done blocks are complete; ``resume=True`` recomputes the others.
 
 The group attribute ``jaxbal_sweep`` records the axes, the block shape and a fingerprint
-of every value the sweep depends on; a resumed sweep must match it.
+of every value the sweep depends on — the axes, the outputs' shapes, and the robot, the
+motion, the metric and the fixed θ (their arrays and structure, :func:`inputs_digest`);
+a resumed sweep must match it, so a store resumed with another robot or motion is
+refused instead of mixing the two.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import re
 from pathlib import Path
 
+import jax
 import numpy as np
 
 from jaxbal._src.sweep_axes import Axis, Layout
 
-__all__ = ["SweepStore", "fingerprint", "open_dataset"]
+__all__ = ["SweepStore", "fingerprint", "inputs_digest", "open_dataset"]
 
 _MANIFEST = "_jaxbal"
 _FORMAT = 1
@@ -43,6 +48,29 @@ def fingerprint(axes: dict[str, Axis], outputs: dict, extra: dict) -> str:
             digest.update(np.ascontiguousarray(values, dtype=np.float64).tobytes())
     digest.update(json.dumps({k: list(v.shape) for k, v in outputs.items()}).encode())
     digest.update(json.dumps(extra, sort_keys=True, default=str).encode())
+    return digest.hexdigest()
+
+
+def _without_addresses(text: str) -> str:
+    """``text`` without object addresses (``<function f at 0x7f…>``), which change from
+    one process to the next."""
+    return re.sub(r" at 0x[0-9a-fA-F]+", "", text)
+
+
+def inputs_digest(*values) -> str:
+    """SHA-256 of pytrees (robot, motion or motion factory, metric, θ): the structure
+    (classes, static fields, function names) and every array leaf's dtype, shape and
+    bytes; any other leaf by its ``repr``."""
+    digest = hashlib.sha256()
+    for value in values:
+        leaves, treedef = jax.tree_util.tree_flatten(value)
+        digest.update(_without_addresses(str(treedef)).encode())
+        for leaf in leaves:
+            if isinstance(leaf, jax.Array | np.ndarray | np.generic | float | int | bool):
+                array = np.ascontiguousarray(np.asarray(leaf))
+                digest.update(f"{array.dtype}{array.shape}".encode() + array.tobytes())
+            else:
+                digest.update(_without_addresses(repr(leaf)).encode())
     return digest.hexdigest()
 
 
