@@ -12,7 +12,7 @@ ROOT = Path(__file__).resolve().parent.parent
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("*.ipynb"))
 #: the public modules a notebook may import from (``jaxbal.robots`` with its submodules).
 PUBLIC = {"robots", "planning", "profiles", "mujoco", "design", "balancing", "sensitivity",
-          "report", "sweep"}  # fmt: skip
+          "report", "sweep", "vibration"}  # fmt: skip
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])
