@@ -114,6 +114,7 @@ def test_residual_amplitude_is_the_fourier_integral_of_the_force(move):
     peak = BaseVibration(base, times, "peak")
     assert float(peak(arm, motion)) == pytest.approx(np.max(np.hypot(x[:, 0], x[:, 1])), rel=1e-12)
     assert peak.__name__ == "peak_vibration" and float(peak(arm, motion)) > 0
+    assert repr(peak).endswith("samples=401, carries_robot=False)")  # short, in messages
 
 
 def test_a_force_balanced_arm_leaves_the_base_still(move):

@@ -341,6 +341,12 @@ class BaseVibration(eqx.Module):
     def __name__(self) -> str:
         return f"{self.kind}_vibration"
 
+    def __repr__(self) -> str:  # short: it names the metric in messages
+        return (
+            f"BaseVibration(kind={self.kind!r}, frequency={self.frequency} Hz, "
+            f"samples={len(self.times)}, carries_robot={self.carries_robot})"
+        )
+
     @property
     def units(self) -> str:
         """``η``'s unit for a rigid base: m (translation modes), rad (rotation modes)."""
