@@ -22,6 +22,9 @@ name                definition                                                  
                     motion's first sample (see :func:`base_inertia`)
 ==================  =============================================================  ======
 
+The vibration of the base the wrench excites (residual after the move, or peak) is the
+metric object :class:`jaxbal.vibration.BaseVibration` (a base model and sample times).
+
 The shaking wrench is the inertial one of :func:`jaxbal.shaking_wrench` (no gravity);
 the moment is the full 3-vector about the base origin (along z for planar robots). The
 torque norm mixes N·m and N for robots with both revolute and prismatic actuators.
