@@ -186,6 +186,8 @@ BAD = {
     "unknown axis": (lambda: rigid_base(100.0, 5.0, axes=("x", "w")), "axes must be distinct"),
     "rotation without inertia": (lambda: rigid_base(100.0, 5.0, axes="rz"), "the base's inertia"),
     "negative mass": (lambda: rigid_base(-1.0, 5.0), "mass must be finite and > 0"),
+    "frequencies per axis": (lambda: rigid_base(1.0, [5.0, 6.0, 7.0]), "frequency must be one"),
+    "damping per mode": (lambda: BaseModes([5.0, 6.0], [0.1] * 3, np.ones((2, 6))), "damping must"),
     "times not increasing": (
         lambda: base_response(rigid_base(100.0, 5.0), [0.0, 0.2, 0.1], *_along(0, [1.0, 1, 1])),
         "strictly increasing",

@@ -99,7 +99,7 @@ class BaseModes(eqx.Module):
         if self.frequency.ndim != 1:
             raise ValueError(f"frequency must be a (k,) array, got shape {self.frequency.shape}")
         k = self.frequency.shape[0]
-        self.damping = jnp.broadcast_to(jnp.asarray(damping, dtype=float), (k,))
+        self.damping = _per_entry("damping", damping, k)
         participation = jnp.asarray(participation, dtype=float)
         if participation.shape != (k, 6):
             raise ValueError(
@@ -137,18 +137,29 @@ def rigid_base(
     rotations = [a for a in axes if a.startswith("r")]
     if rotations and inertia is None:
         raise ValueError(f"rotation axes {rotations} need the base's inertia [kg·m²]")
-    inertias = np.broadcast_to(np.asarray(inertia if rotations else 1.0, float), (len(rotations),))
-    moduli = {"mass": np.asarray(mass, float), "inertia": inertias}
-    for name, value in moduli.items():
-        if not np.all(np.isfinite(value) & (value > 0)):
-            raise ValueError(f"the base's {name} must be finite and > 0, got {value!r}")
-    participation = np.zeros((len(axes), 6))
+    inertias = _per_entry("inertia", inertia if rotations else 1.0, len(rotations))
+    mass = jnp.asarray(mass, dtype=float)
+    if mass.ndim:
+        raise ValueError(f"mass must be one value [kg], got shape {mass.shape}")
+    moduli = {"mass": mass, "inertia": inertias}
+    mass, inertias = (
+        guard(v, ~(jnp.isfinite(v) & (v > 0)), f"the base's {n} must be finite and > 0", v)
+        for n, v in moduli.items()
+    )
+    participation = jnp.zeros((len(axes), 6))
     for j, axis in enumerate(axes):
-        rotation = axis.startswith("r")
-        modal_mass = inertias[rotations.index(axis)] if rotation else float(mass)
-        participation[j, AXES.index(axis)] = 1.0 / modal_mass
-    frequency = np.broadcast_to(np.asarray(frequency, float), (len(axes),))
-    return BaseModes(frequency, damping, participation)
+        modal = inertias[rotations.index(axis)] if axis.startswith("r") else mass
+        participation = participation.at[j, AXES.index(axis)].set(1.0 / modal)
+    frequency = _per_entry("frequency", frequency, len(axes))
+    return BaseModes(frequency, _per_entry("damping", damping, len(axes)), participation)
+
+
+def _per_entry(name: str, value, count: int) -> Array:
+    """``value`` (one, or one per mode or axis) as a ``(count,)`` array."""
+    value = jnp.asarray(value, dtype=float)
+    if value.ndim > 1 or value.size not in (1, count):
+        raise ValueError(f"{name} must be one value or {count} (one each), got {value.shape}")
+    return jnp.broadcast_to(value.reshape(-1) if value.ndim else value, (count,))
 
 
 def carrying(base: BaseModes, mass) -> BaseModes:
