@@ -410,3 +410,22 @@ def test_ray_two_workers_equal_local_after_a_worker_is_killed(tmp_path):
     assert result["killed"] is not None  # a worker really died mid-sweep
     assert result["blocks"] == "8/8"
     assert result["equal"]
+
+
+def test_sweeps_in_a_loop_keep_a_bounded_number_of_programs(arm, monkeypatch):
+    """Each sweep with a new ``where=`` lambda is a program of its own; the module-level
+    jits kept every one (thousands in a loop crashed XLA's compiler: the kernel's
+    memory-map count ran out). Their caches stay within MAX_PROGRAMS (2 here)."""
+    from jaxbal._src import sweep_affine, sweep_program
+
+    robot, motion = arm
+    monkeypatch.setattr(sweep_program, "MAX_PROGRAMS", 2)
+    jits = (sweep_program.run_chunk, sweep_affine._linearise, sweep_affine._direct)
+    for k in range(4):
+        axes = {"m": jaxbal.sweep.grid([1.0 + k], where=lambda r: r.masses)}
+        for fold, linear in ((True, "auto"), (False, False)):
+            jaxbal.sweep("peak_force", robot, motion, axes, progress=False, fold=fold,
+                         linear=linear)  # fmt: skip
+        assert all(f._cache_size() <= 2 for f in jits), [f._cache_size() for f in jits]
+    assert sweep_program.PROGRAM_JITS[:2] == [sweep_program.run_chunk, sweep_program._single]
+    assert {sweep_affine._linearise, sweep_affine._direct} <= set(sweep_program.PROGRAM_JITS)

@@ -24,6 +24,7 @@ from jaxbal._src.sweep_program import (
     chunk_memory,
     device_mesh,
     output_shapes,
+    release_programs,
     shape_key,
 )
 from jaxbal._src.sweep_run import run_backend
@@ -393,4 +394,5 @@ def sweep(
     chunks = Chunks(axes, opened.layout, count, allow_nonfinite)
     pending = [k for k, done in enumerate(opened.done()) if not done]
     run_backend(backend, program, dynamic, chunks, pending, opened, progress, fold)
+    release_programs()
     return open_dataset(opened.group)

@@ -39,7 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.momentum import checked_bodies, checked_parameters, shaking_wrench
-from jaxbal._src.sweep_program import apply_parameters
+from jaxbal._src.sweep_program import PROGRAM_JITS, apply_parameters
 from jaxbal._src.validation import runtime_checks
 
 __all__ = ["CHECK_POINTS", "TOLERANCE", "WRENCH_METRICS", "AffineMetric", "AffineWrench",
@@ -179,6 +179,9 @@ def _linearise(plan, layout, robot, motion, flat):
 def _direct(plan, layout, robot, motion, points):
     """The wrench ``(V, 2, t, 3)`` at each of the flat parameter ``points``."""
     return jax.vmap(partial(_wrench, plan, layout, robot, motion))(points)
+
+
+PROGRAM_JITS += [_linearise, _direct]
 
 
 def _deviation(offset, basis, theta0, points, direct) -> float:

@@ -239,6 +239,24 @@ def output_shapes(program: Program, dynamic, params: dict) -> dict:
     return _SHAPES[key]
 
 
+#: the module-level ``jit``s of sweeps whose static argument holds the user's functions
+#: (a ``where=`` lambda, a metric): each new one is a program of its own, which XLA keeps
+#: with its machine code mapped in memory. Thousands in one process (sweeps in a loop,
+#: each with a new lambda) exhausted the kernel's memory-map count and crashed XLA's
+#: compiler; :func:`release_programs` bounds them (sweep_affine registers its own).
+PROGRAM_JITS: list = [run_chunk, _single]
+#: programs kept per ``jit`` of :data:`PROGRAM_JITS` (beyond it, its cache is cleared).
+MAX_PROGRAMS = 32
+
+
+def release_programs() -> None:
+    """Clear the cache of each ``jit`` of :data:`PROGRAM_JITS` holding more than
+    :data:`MAX_PROGRAMS` programs (called after every sweep)."""
+    for function in PROGRAM_JITS:
+        if function._cache_size() > MAX_PROGRAMS:
+            function.clear_cache()
+
+
 def bound_cache(cache: dict, size: int = 32) -> None:
     """Drop the oldest entries of ``cache`` beyond ``size`` (they hold programs)."""
     while len(cache) > size:
