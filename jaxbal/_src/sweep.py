@@ -393,6 +393,8 @@ def sweep(
         opened = SweepStore.create(path, axes, layout, outputs, meta)
     chunks = Chunks(axes, opened.layout, count, allow_nonfinite)
     pending = [k for k, done in enumerate(opened.done()) if not done]
-    run_backend(backend, program, dynamic, chunks, pending, opened, progress, fold)
-    release_programs()
+    try:
+        run_backend(backend, program, dynamic, chunks, pending, opened, progress, fold)
+    finally:  # also after a block's runtime check failed
+        release_programs()
     return open_dataset(opened.group)
