@@ -208,6 +208,10 @@ BAD = {
         "translation modes only",
     ),
     "negative carried mass": (lambda: carrying(rigid_base(100.0, 5.0), -1.0), "carried mass"),
+    "carrying an undriven mode": (
+        lambda: carrying(BaseModes(5.0, 0.0, np.zeros((1, 6))), 1.0),
+        "translation modes only",
+    ),
 }  # fmt: skip
 
 
