@@ -38,7 +38,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.base_vibration import refuse_rescaled_times
+from jaxbal._src.base_vibration_metric import refuse_rescaled_times
 from jaxbal._src.design import CONSTRAINT_PENALTY, FEASIBILITY_RTOL
 from jaxbal._src.design_loss import (
     _bounds,
