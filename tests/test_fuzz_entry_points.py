@@ -528,6 +528,16 @@ _Q0 = PLAN_ARM.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
 _Q1 = PLAN_ARM.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
 
 
+def test_com_line_subnormal_duration_regression():
+    """A subnormal duration (2.2e-311 s, found by make fuzz) passed com_line's eager check
+    (NumPy keeps it > 0) and was refused only where the plan was evaluated (XLA's CPU
+    flushes it to 0): refused at once now, with the same message."""
+    for duration in (2.225073858507e-311, 5e-324):
+        with pytest.raises(ValueError, match="duration must be finite and > 0"):
+            jaxbal.planning.com_line(PLAN_ARM, _Q0, _Q1, Quintic(), duration)
+    jaxbal.planning.com_line(PLAN_ARM, _Q0, _Q1, Quintic(), np.finfo(float).tiny)  # normal
+
+
 @given(
     duration=hostile,
     t=st.one_of(st.floats(0.0, 1.0), hostile),

@@ -131,7 +131,8 @@ def com_line(
         check_shape(name, q, (robot.dof,))
         raise_if_invalid(jnp.all(jnp.isfinite(q)), f"{name} must be finite", q)
     if not is_traced(duration):  # NumPy: no eager JAX operations (each one a compile)
-        positive = np.isfinite(np.asarray(duration, float)) & (np.asarray(duration, float) > 0)
+        value = np.asarray(duration, float)  # a subnormal is 0 to XLA's CPU (flushed)
+        positive = np.isfinite(value) & (value >= np.finfo(float).tiny)
         raise_if_invalid(positive, "duration must be finite and > 0 [s]", duration)
     start = center_of_mass(robot, q_start)[:dims]
     end = center_of_mass(robot, q_end)[:dims]
