@@ -429,3 +429,24 @@ def test_sweeps_in_a_loop_keep_a_bounded_number_of_programs(arm, monkeypatch):
         assert all(f._cache_size() <= 2 for f in jits), [f._cache_size() for f in jits]
     assert sweep_program.PROGRAM_JITS[:2] == [sweep_program.run_chunk, sweep_program._single]
     assert {sweep_affine._linearise, sweep_affine._direct} <= set(sweep_program.PROGRAM_JITS)
+
+
+def test_a_swept_geometry_that_opens_the_loops_of_a_fixed_motion_is_refused():
+    """The Orthoglide's parallelogram length swept along a motion solved for 0.31 m: the
+    states leave the loop closures, and the torques were finite and wrong (3e42 N·m at
+    1e-8 of the length, make fuzz). Refused naming the axis; a swept mass passes, and
+    so does the length at its own value."""
+    robot = jaxbal.robots.orthoglide(payload=1.0)
+    line = jaxbal.StraightLine(jnp.zeros(3), jnp.full(3, 0.02), jaxbal.profiles.Quintic(), 0.2)
+    move = jaxbal.planning.EndEffectorLine(robot, line)
+    motion = motion_samples(robot, move, jaxbal.sample_times(0.2, 21))
+    length = {"L": jaxbal.sweep.grid([0.31, 0.35], where=lambda r: r.length)}
+    with pytest.raises(ValueError, match=r"axis 'L' changes the geometry of Orthoglide: at"):
+        jaxbal.sweep("peak_torque", robot, motion, length, progress=False)
+    mass = {"m": jaxbal.sweep.grid([0.5, 1.0], where=lambda r: r.platform_mass)}
+    ds = jaxbal.sweep("peak_torque", robot, motion, mass, progress=False)
+    assert np.all(np.isfinite(ds["value"].values))
+    same = {"L": jaxbal.sweep.grid([0.31], where=lambda r: r.length)}
+    ds = jaxbal.sweep("peak_torque", robot, motion, same, progress=False)
+    expected = jaxbal.design.peak_torque(robot, motion)
+    np.testing.assert_allclose(ds["value"].values, [expected], rtol=1e-12)

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from jaxbal._src.sweep_axes import Axis, Layout, grid
+from jaxbal._src.sweep_loops import check_loops
 from jaxbal._src.sweep_program import (
     bound_cache,
     build,
@@ -270,6 +271,7 @@ def prepare(
     function = resolve_metric(metric) if isinstance(metric, str) else metric
     plan = plan_parameters(axes, robot, motion)
     check_bounds(axes, robot, plan)
+    check_loops(axes, robot, motion, plan)
     evaluation = "direct"
     fast = _affine(metric, robot, motion, axes, plan, trajectory, linear)
     if fast is not None:
@@ -296,11 +298,8 @@ def _metadata(
     if unknown:
         raise ValueError(f"units for unknown outputs {sorted(unknown)}; outputs {sorted(outputs)}")
     if not units:  # a named metric's, or a metric object's ``units`` (BaseVibration)
-        unit = (
-            METRIC_UNITS.get(metric, "")
-            if isinstance(metric, str)
-            else getattr(metric, "units", "")
-        )
+        named = isinstance(metric, str)
+        unit = METRIC_UNITS.get(metric, "") if named else getattr(metric, "units", "")
         units = {n: unit for n in outputs} if isinstance(unit, str) and unit else units
     base = {"metric": name, "robot": type(robot).__name__}
     if evaluation != "direct":  # part of the fingerprint: a resume never mixes the two
