@@ -61,6 +61,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._src.linalg import safe_sqrt
 from jaxbal._src.types import Array, Float, Scalar
 from jaxbal._src.validation import guard, is_traced
 
@@ -329,6 +330,4 @@ def residual_amplitude(
 
 def _norm(vectors):
     """``‖v‖`` over the last axis with a zero (not NaN) gradient at ``v = 0``."""
-    square = jnp.sum(vectors**2, axis=-1)
-    positive = square > 0.0
-    return jnp.where(positive, jnp.sqrt(jnp.where(positive, square, 1.0)), 0.0)
+    return safe_sqrt(jnp.sum(vectors**2, axis=-1))

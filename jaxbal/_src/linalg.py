@@ -11,6 +11,13 @@ import jax
 import jax.numpy as jnp
 
 
+def safe_sqrt(square):
+    """``sqrt(x)`` of ``x ≥ 0`` with a zero (not NaN, not inf) gradient at ``x = 0``
+    (the double ``where``): the zero-safe norms of the metrics and of the base vibration."""
+    positive = square > 0.0
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, square, 1.0)), 0.0)
+
+
 def matvec(matrix, vector):
     """``(..., 3, 3) @ (..., 3) -> (..., 3)``."""
     return jnp.sum(matrix * vector[..., None, :], axis=-1)

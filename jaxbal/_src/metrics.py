@@ -49,7 +49,7 @@ import numpy as np
 
 from jaxbal._src.actuation import actuator_torques
 from jaxbal._src.along_motion import batched
-from jaxbal._src.linalg import matvec
+from jaxbal._src.linalg import matvec, safe_sqrt
 from jaxbal._src.merged_guards import merged_guards
 from jaxbal._src.momentum import (
     body_com_poses,
@@ -115,9 +115,7 @@ def _rms(vectors: Float[Array, "t k"]) -> Scalar:
     """``sqrt(mean_t ‖v(t)‖²)``, with a zero (not NaN) gradient at ``v ≡ 0``; scaled so
     that a finite wrench above 1e154 N does not overflow to inf."""
     scale = unit_scale(vectors)
-    mean_square = jnp.mean(jnp.sum((vectors / scale) ** 2, axis=-1))
-    positive = mean_square > 0.0
-    return scale * jnp.where(positive, jnp.sqrt(jnp.where(positive, mean_square, 1.0)), 0.0)
+    return scale * safe_sqrt(jnp.mean(jnp.sum((vectors / scale) ** 2, axis=-1)))
 
 
 #: the RMS compiled, for eager calls: run operation by operation, each of its ~10 small

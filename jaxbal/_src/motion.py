@@ -55,6 +55,11 @@ def state_valid(robot: Robot, q, qd, qdd, tol: float = LOOP_TOLERANCE) -> Array:
     return finite & ok
 
 
+def states_valid(robot: Robot, q, qd, qdd) -> Array:
+    """``(t,)`` :func:`state_valid` of each row of ``(t, dof)`` states (one ``vmap``)."""
+    return jax.vmap(lambda a, b, c: state_valid(robot, a, b, c))(q, qd, qdd)
+
+
 def check_state(robot: Robot, q, qd, qdd) -> None:
     """Eagerly raise ``ValueError`` if ``(q, q̇, q̈)`` is not a consistent state of the
     robot (non-finite, or violating its loop closures); no-op under tracing."""

@@ -8,12 +8,11 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.callables import as_pytree
-from jaxbal._src.motion import state_valid
+from jaxbal._src.motion import states_valid
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import sample
 from jaxbal._src.types import Array, Float
@@ -85,7 +84,7 @@ def _sample(robot, trajectory, times, order):
     runtime checks (e.g. a trajectory's duration) are functional, so that the
     persistent compilation cache keeps it for the next process."""
     q, qd, qdd, *jerk = sample(trajectory, times, order=order)
-    valid = jax.vmap(lambda a, b, c: state_valid(robot, a, b, c))(q, qd, qdd)
+    valid = states_valid(robot, q, qd, qdd)
     return (q, qd, qdd, *jerk), valid
 
 

@@ -30,6 +30,7 @@ import numpy as np
 
 from jaxbal._src.com_ik import com_inverse_kinematics
 from jaxbal._src.dynamics import inverse_dynamics, inverse_dynamics_rate
+from jaxbal._src.linalg import safe_sqrt
 from jaxbal._src.momentum import center_of_mass, shaking_wrench
 from jaxbal._src.profiles import Profile
 from jaxbal._src.robot import Robot
@@ -213,10 +214,7 @@ def peak_norm(vectors: Float[Array, "t 3"]) -> Float[Array, ""]:
 def _peak_norm(vectors):
     big = jax.lax.stop_gradient(jnp.max(jnp.abs(vectors)))
     scale = jnp.where(big > 1e150, big, 1.0)
-    squared = jnp.sum((vectors / scale) ** 2, axis=-1)
-    positive = squared > 0.0
-    norms = jnp.where(positive, jnp.sqrt(jnp.where(positive, squared, 1.0)), 0.0)
-    return scale * jnp.max(norms)
+    return scale * jnp.max(safe_sqrt(jnp.sum((vectors / scale) ** 2, axis=-1)))
 
 
 _peak_norm_compiled = jax.jit(_peak_norm)

@@ -19,16 +19,15 @@ import jax
 import numpy as np
 
 from jaxbal._src.metrics import as_motion
-from jaxbal._src.motion import state_valid
+from jaxbal._src.motion import states_valid
 from jaxbal._src.sweep_program import apply_parameters
 from jaxbal._src.validation import runtime_checks
 
 __all__ = ["check_loops"]
 
 
-@jax.jit
-def _valid(robot, q, qd, qdd):
-    return jax.vmap(lambda a, b, c: state_valid(robot, a, b, c))(q, qd, qdd)
+#: :func:`~jaxbal._src.motion.states_valid`, compiled once per robot structure
+_valid = jax.jit(states_valid)
 
 
 def check_loops(axes: dict, robot, motion, plan: tuple) -> None:

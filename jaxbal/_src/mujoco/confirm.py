@@ -22,7 +22,7 @@ import numpy as np
 
 from jaxbal._src.linalg import vee
 from jaxbal._src.momentum import check_robot, checked_finite, shaking_wrench
-from jaxbal._src.motion import state_valid
+from jaxbal._src.motion import states_valid
 from jaxbal._src.mujoco.inverse import base_reaction_and_closure, mjx_base_reaction, mjx_model
 from jaxbal._src.mujoco.tree import Tree
 from jaxbal._src.robot import Robot
@@ -75,7 +75,7 @@ def _reference_and_scales(robot: Robot, q, qd, qdd, g):
     host): a program without host callbacks, which the persistent compilation cache
     keeps for the next process."""
     force, moment = jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c, gravity=g))(q, qd, qdd)
-    valid = jax.vmap(lambda a, b, c: state_valid(robot, a, b, c))(q, qd, qdd)
+    valid = states_valid(robot, q, qd, qdd)
     return force, moment, *_gross_scales(robot, q, qd, qdd, g), valid
 
 
