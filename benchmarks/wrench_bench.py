@@ -5,7 +5,8 @@ throughput of ``jaxbal.shaking_wrench`` (one device, chunked ``jit(vmap)``; and 
 all local devices); the generic evaluation of the same wrench as it was when the
 performance issue was filed (the baseline the speed-ups are stated against: the
 physics as written, without the straight-line replay, and the state threaded through
-its finiteness check, which split the compiled loop; one more output check than then);
+its finiteness check, which split the compiled loop; one more output check than then;
+no loop-closure check, which ours computes with the wrench of a closed chain);
 the MuJoCo C ``mj_inverse`` Python loop and MJX ``inverse`` (``jit(vmap)``) on the
 same model and states; compile time of the first call; peak temporary memory per state
 (XLA's memory analysis); and the cost of ``jax.grad`` of a peak-force objective along
@@ -119,7 +120,8 @@ def torque_cost(robot, states, chunk: int, loop_count: int) -> dict:
         return jaxbal.actuator_torques(robot, q, qd, qdd)
 
     def before(q, qd, qdd):
-        return _actuator_torques(robot, q, qd, qdd, None, lagrange_forces)
+        # as it was: Lagrange's form, no loop-closure check (ours has it, fused)
+        return _actuator_torques(robot, q, qd, qdd, None, lagrange_forces, loops=False)
 
     count = states[0].shape[0]
     fn, fn_before = chunked(generic, chunk), chunked(before, chunk)
@@ -162,7 +164,8 @@ def bench_robot(name: str, count: int, loop_count: int, mjx_count: int, chunk: i
 
     def before(q, qd, qdd):
         q, qd, qdd = checked_state(robot, q, qd, qdd)  # the check as it was (module doc)
-        return _shaking_wrench(robot, q, qd, qdd, None, replay=False)
+        # no loop-closure check then (ours has it, computed with the wrench)
+        return _shaking_wrench(robot, q, qd, qdd, None, replay=False, loops=False)
 
     fn = chunked(generic, chunk)
     compile_seconds = first_call(fn, *(a[:chunk] for a in states))

@@ -53,3 +53,25 @@ def slow_for(values, *slow):
     ``make test-all`` (long compiles whose check another case already makes in
     ``make test``)."""
     return [pytest.param(v, marks=pytest.mark.slow) if v in slow else v for v in values]
+
+
+def random_states(robot, count, seed=0):
+    """``count`` random states ``(q, q̇, q̈)``, each ``(count, dof)``, of any robot: for a
+    serial robot q ∈ 0.1 ± 0.1, q̇ ~ N(0, 2), q̈ ~ N(0, 20); for a closed chain, whose
+    states must close its loops, the robot's inverse kinematics (``jaxbal.pose_motion``)
+    of random end-effector motions about the centre of its workspace (poses ± 0.02,
+    rates N(0, 0.5), accelerations N(0, 5), SI)."""
+    import jax.numpy as jnp
+    import numpy as np
+
+    rng = np.random.default_rng(seed)
+    probe = jax.ShapeDtypeStruct((robot.dof,), jnp.float64)
+    if jax.eval_shape(robot.constraint, probe).shape[0] == 0:
+        q = 0.1 + rng.uniform(-0.1, 0.1, (count, robot.dof))
+        qd, qdd = rng.normal(0, 2, q.shape), rng.normal(0, 20, q.shape)
+        return tuple(jnp.asarray(a) for a in (q, qd, qdd))
+    size = jnp.shape(robot.end_effector(robot.inverse_kinematics(jnp.zeros(3))))[0]
+    poses = rng.uniform(-0.02, 0.02, (count, size))
+    rates, accelerations = rng.normal(0, 0.5, poses.shape), rng.normal(0, 5, poses.shape)
+    motion = jax.jit(jax.vmap(lambda u, v, w: jaxbal.pose_motion(robot, u, v, w)))
+    return motion(jnp.asarray(poses), jnp.asarray(rates), jnp.asarray(accelerations))

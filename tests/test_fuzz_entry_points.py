@@ -209,7 +209,7 @@ LEAVES = {
 #: peak_torque 9-11 s); the long run takes all five.
 PHYSICS = sorted(LEAVES) if LONG else ["planar_2r"]
 NAMED = ("body masses", "body inertias", "robot parameters", "is not finite",
-         "added-mass design variables", "non-finite")  # fmt: skip
+         "added-mass design variables", "non-finite", "loop closures")  # fmt: skip
 #: peak_torque_rate needs a JerkMotion; its checks are those of every metric (_batched)
 FUNCTIONS = ("shaking_wrench", "center_of_mass", "actuator_torques",
              *(m for m in jaxbal.design.METRICS if m != "peak_torque_rate"))  # fmt: skip

@@ -8,6 +8,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import random_states as states
 from jax.test_util import check_grads
 
 import jaxbal
@@ -15,12 +16,6 @@ from jaxbal._src import momentum
 from jaxbal._src.straight_line import straight_line
 
 ROBOTS = ["planar_2r", "planar_3r", "scara", "dual_v", "orthoglide"]
-
-
-def states(robot, count, seed=0):
-    rng = np.random.default_rng(seed)
-    q = 0.1 + rng.uniform(-0.1, 0.1, (count, robot.dof))
-    return tuple(jnp.asarray(a) for a in (q, rng.normal(0, 2, q.shape), rng.normal(0, 20, q.shape)))
 
 
 @pytest.mark.parametrize("name", ROBOTS)

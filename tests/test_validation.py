@@ -15,8 +15,8 @@ from jaxbal.robots.dual_v_balancing import with_counter_mass_moments
 @pytest.fixture(scope="module")
 def dual_v_state():
     robot = jaxbal.robots.dual_v()
-    q = robot.inverse_kinematics(jnp.zeros(3))
-    return robot, q, jnp.ones(11), jnp.ones(11)
+    # a state on its loops (the wrench checks them): the IK's motion at the centre
+    return (robot, *jaxbal.pose_motion(robot, jnp.zeros(3), jnp.full(3, 0.5), jnp.full(3, 5.0)))
 
 
 def test_negative_derived_mass_is_refused_eagerly_and_under_jit(dual_v_state):

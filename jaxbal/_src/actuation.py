@@ -53,17 +53,22 @@ def actuator_torques(
     One sample; batch with ``jax.vmap``.
 
     Raises:
-        ValueError: the checks of :func:`jaxbal.inverse_dynamics`, and torques that are
+        ValueError: the checks of :func:`jaxbal.inverse_dynamics`, a state off a
+            closed chain's loop closures (:func:`jaxbal.state_valid`; e.g. a motion
+            held while a length was changed with ``eqx.tree_at``), and torques that are
             not finite (a singular configuration of a parallel robot); eagerly, or at
             run time under ``jit``.
     """
     return _actuator_torques(robot, q, qd, qdd, gravity)
 
 
-def _actuator_torques(robot: Robot, q, qd, qdd, gravity, formulation=None) -> Float[Array, " a"]:
+def _actuator_torques(
+    robot: Robot, q, qd, qdd, gravity, formulation=None, loops: bool = True
+) -> Float[Array, " a"]:
     """:func:`actuator_torques`, the generalised forces by ``formulation`` (see
-    :func:`jaxbal._src.dynamics._inverse_dynamics`)."""
-    forces = _inverse_dynamics(robot, q, qd, qdd, gravity, formulation)
+    :func:`jaxbal._src.dynamics._inverse_dynamics`); ``loops=False`` leaves out the
+    loop-closure check (the benchmark's "before", which had none)."""
+    forces = _inverse_dynamics(robot, q, qd, qdd, gravity, formulation, loops=loops)
     actuated = np.asarray(robot.actuated)
     if jax.eval_shape(robot.constraint, q).shape[0] == 0:
         return forces[actuated]

@@ -11,6 +11,7 @@ import equinox as eqx
 import jax
 import numpy as np
 
+from jaxbal._src.loop_checks import check_samples_eagerly
 from jaxbal._src.momentum import check_robot, checked_finite
 from jaxbal._src.motion_samples import Motion, as_motion
 from jaxbal._src.robot import Robot
@@ -29,7 +30,8 @@ def batched(evaluate, robot: Robot, motion: Motion, what: str, jerk: bool = Fals
     :func:`samples`, eagerly :func:`compiled_samples`; e.g. the regressor's compiled
     program keyed on :func:`~jaxbal.runtime_checks` being on or off).
 
-    An eager call checks the values first and raises ``ValueError``: inside ``vmap`` the
+    An eager call checks the values first (the robot, finite states, a closed chain's
+    loop closures) and raises ``ValueError``: inside ``vmap`` the
     runtime checks would surface as a JAX-internal callback error (``INTERNAL:
     CpuCallback error``) instead of naming the offending value.
     """
@@ -44,6 +46,7 @@ def batched(evaluate, robot: Robot, motion: Motion, what: str, jerk: bool = Fals
     finite = np.all(np.isfinite(states), axis=-1)
     raise_if_invalid(finite, "non-finite state (q, qd, qdd) in the motion at samples",
                      np.arange(finite.shape[0]))  # fmt: skip
+    check_samples_eagerly(robot, *motion[:3])  # a closed chain: on its loops
     with runtime_checks(False):  # checked above and below, eagerly
         out = run(evaluate, robot, motion)
     return checked_finite(what, robot, out)

@@ -35,6 +35,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxbal._src.linalg import cross, matvec, rmatvec, world_inertia_times
+from jaxbal._src.loop_checks import with_loop_excess
 from jaxbal._src.merged_guards import merged_guards
 from jaxbal._src.momentum import (
     _REPLAY,
@@ -87,7 +88,9 @@ def inverse_dynamics(
             time; eagerly a non-finite state, a negative/non-finite body mass or
             inertia, a non-finite robot parameter or an overflow; under ``jit`` the same
             value checks at run time). Before, such robots gave silent NaN or wrong
-            torques under ``jit``.
+            torques under ``jit``. The loop closures of a closed chain are not
+            required: these are the generalised forces of all its coordinates, defined
+            for any state (:func:`jaxbal.actuator_torques` requires them).
 
     References:
         Lagrange's equations of the second kind; Khalil & Dombre (2002); evaluated in
@@ -96,15 +99,34 @@ def inverse_dynamics(
     return _inverse_dynamics(robot, q, qd, qdd, gravity)
 
 
-def _inverse_dynamics(robot: Robot, q, qd, qdd, gravity, formulation=None) -> Coordinates:
+def _inverse_dynamics(
+    robot: Robot, q, qd, qdd, gravity, formulation=None, loops: bool = False
+) -> Coordinates:
     """:func:`inverse_dynamics` with its checks, the forces from ``formulation(robot, q, q̇,
     q̈, gravity)`` (default Kane's form; :func:`lagrange_forces` is the benchmark's
-    "before")."""
-    q, qd, qdd, check = state_check(robot, q, qd, qdd)
+    "before"); with ``loops`` the state must also close a closed chain's loops (the
+    actuator torques'; the generalised forces of all coordinates are defined for any
+    state, e.g. the bias ``h(q, q̇)`` of a forward dynamics at ``q̈ = 0``)."""
+    q, qd, qdd, check = state_check(robot, q, qd, qdd, loops=loops)
     if formulation is None:
-        formulation = _straight_kane_forces if _REPLAY.value else _straight_kane_forces.as_written
-    tau = formulation(robot, q, qd, qdd, gravity)
-    return merged_guards(lambda t: checked_physics("generalised forces", robot, check(t)), tau)
+        straight = _straight_kane_forces_loops if check.traced_loops else _straight_kane_forces
+        formulation = straight if _REPLAY.value else straight.as_written
+    elif check.traced_loops:  # e.g. Lagrange's form: the loop residuals computed beside
+        formulation = with_loop_excess(formulation)
+    if not check.traced_loops:
+        tau = formulation(robot, q, qd, qdd, gravity)
+        return merged_guards(lambda t: check.loops(checked_physics(_FORCES, robot, check(t))), tau)
+
+    # a closed chain's loop residuals written to memory with the forces (momentum's
+    # _shaking_wrench)
+    def checks(both):
+        t, excess = both
+        return check.loops(checked_physics(_FORCES, robot, check(t)), excess), excess
+
+    return merged_guards(checks, formulation(robot, q, qd, qdd, gravity))[0]
+
+
+_FORCES = "generalised forces"
 
 
 def _kane_forces(robot: Robot, q, qd, qdd, gravity) -> Coordinates:
@@ -133,6 +155,8 @@ def _kane_forces(robot: Robot, q, qd, qdd, gravity) -> Coordinates:
 # 2R 7.2 → 0.12 µs each and the first compile 1.4 → 0.3 s; the DUAL-V's 11
 # coordinates 39 → 0.5 µs, 2.5 → 1.6 s.
 _straight_kane_forces = straight_line(_kane_forces)
+#: with the loop excess of a closed chain's state (:mod:`jaxbal._src.loop_checks`)
+_straight_kane_forces_loops = straight_line(with_loop_excess(_kane_forces))
 
 
 def lagrange_forces(robot: Robot, q, qd, qdd, gravity=None) -> Coordinates:

@@ -5,10 +5,11 @@ function runs operation by operation: each operation is a dispatch, and in a fre
 process a compilation of its own (~20–100 ms each on the 2-core CPU; ~30 of them for
 the DUAL-V's wrench of one state). :func:`run_compiled` runs it as one program instead,
 compiled once per function and robot structure, traced without the runtime checks (no
-host callbacks, so the persistent compilation cache keeps it) and returning the robot's
-validity mask with the result. When the robot is invalid, or an input or the result is
-not finite, the function runs again operation by operation: its checks raise the
-``ValueError`` naming the offending values, exactly as an eager call always did.
+host callbacks, so the persistent compilation cache keeps it) and returning the
+validity mask of the robot (and of the state: a closed chain's loops) with the result.
+When the robot or the state is invalid, or an input or the result is not finite, the
+function runs again operation by operation: its checks raise the ``ValueError`` naming
+the offending values, exactly as an eager call always did.
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from jaxbal._src.validation import _under_trace, runtime_checks
 @eqx.filter_jit
 def _program(fn: Callable, faulty: Callable, robot: Robot, arrays):
     with runtime_checks(False):
-        return fn(robot, *arrays), faulty(robot)
+        return fn(robot, *arrays), faulty(robot, *arrays)
 
 
 def run_compiled(fn: Callable, faulty: Callable, robot: Robot, *arrays):
@@ -35,7 +36,9 @@ def run_compiled(fn: Callable, faulty: Callable, robot: Robot, *arrays):
     Args:
         fn: a module-level function (its identity keys the compiled program) whose
             value checks are the robot's validity and finite inputs and result.
-        faulty: ``robot -> bool`` (traceable): would ``fn``'s checks reject the robot?
+        faulty: ``(robot, *arrays) -> bool`` (traceable, module-level): would ``fn``'s
+            checks reject the robot or the arrays (e.g. a state off a closed chain's
+            loops)?
         robot: a concrete robot.
         arrays: the other arguments: array-likes (as float arrays) or ``None``.
 

@@ -18,7 +18,7 @@ import jax.numpy as jnp
 
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import time_derivatives
-from jaxbal._src.types import Array, Coordinates, Float, ScalarLike
+from jaxbal._src.types import Array, Coordinates, Float, Scalar, ScalarLike
 from jaxbal._src.validation import check_shape, raise_if_invalid
 
 #: Tolerance of the loop-closure check: ``|Φ| ≤ tol``, ``|Φ̇| ≤ tol (1 + |q̇|)``,
@@ -36,6 +36,17 @@ def loop_closure_residuals(robot: Robot, q: Coordinates, qd: Coordinates, qdd: C
     return phi, phi_d, phi_dd
 
 
+def loop_excess(robot: Robot, q, qd, qdd, tol: float = LOOP_TOLERANCE) -> Scalar:
+    """Largest loop-closure residual of the state relative to its tolerance ``tol``
+    (``≤ 1``: consistent, the test of :func:`state_valid`): ``max(|Φ|/tol, |Φ̇|/(tol (1 +
+    |q̇|)), |Φ̈|/(tol (1 + |q̈| + |q̇|²)))`` with max-norms; NaN for a non-finite state."""
+    phi, phi_d, phi_dd = loop_closure_residuals(robot, q, qd, qdd)
+    speed = jnp.max(jnp.abs(qd))
+    bounds = (1.0, 1.0 + speed, 1.0 + jnp.max(jnp.abs(qdd)) + speed**2)
+    parts = [jnp.max(jnp.abs(r)) / b for r, b in zip((phi, phi_d, phi_dd), bounds, strict=True)]
+    return jnp.maximum(jnp.maximum(parts[0], parts[1]), parts[2]) / tol
+
+
 def state_valid(robot: Robot, q, qd, qdd, tol: float = LOOP_TOLERANCE) -> Array:
     """Boolean: the state is finite and satisfies the loop closures to ``tol``
     (always True for a serial robot with a finite state). Works under jit/vmap."""
@@ -45,14 +56,7 @@ def state_valid(robot: Robot, q, qd, qdd, tol: float = LOOP_TOLERANCE) -> Array:
     finite = jnp.all(jnp.isfinite(q)) & jnp.all(jnp.isfinite(qd)) & jnp.all(jnp.isfinite(qdd))
     if jax.eval_shape(robot.constraint, q).shape[0] == 0:
         return finite
-    phi, phi_d, phi_dd = loop_closure_residuals(robot, q, qd, qdd)
-    speed = jnp.max(jnp.abs(qd))
-    ok = (
-        (jnp.max(jnp.abs(phi)) <= tol)
-        & (jnp.max(jnp.abs(phi_d)) <= tol * (1.0 + speed))
-        & (jnp.max(jnp.abs(phi_dd)) <= tol * (1.0 + jnp.max(jnp.abs(qdd)) + speed**2))
-    )
-    return finite & ok
+    return finite & (loop_excess(robot, q, qd, qdd, tol) <= 1.0)
 
 
 def states_valid(robot: Robot, q, qd, qdd) -> Array:

@@ -34,7 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.config import compiler_options
-from jaxbal._src.momentum import shaking_wrench
+from jaxbal._src.momentum import tree_wrench
 from jaxbal._src.mujoco.confirm import _gross_scales
 from jaxbal._src.mujoco.mjcf import _fmt, realisable_inertia
 from jaxbal._src.mujoco.tree import matrix_to_quat
@@ -111,8 +111,10 @@ def _add_to_urdf(root, robot: MjcfRobot) -> None:
 
 
 def _wrenches_and_scales(robot: MjcfRobot, q, qd, qdd):
-    """``((T, 3), (T, 3))`` shaking wrenches and the gross force and moment scales."""
-    wrenches = jax.vmap(lambda a, b, c: shaking_wrench(robot, a, b, c))(q, qd, qdd)
+    """``((T, 3), (T, 3))`` shaking wrenches of the bodies at any states (the loops not
+    required: the two models are compared at random states) and the gross force and
+    moment scales."""
+    wrenches = jax.vmap(lambda a, b, c: tree_wrench(robot, a, b, c))(q, qd, qdd)
     return wrenches, _gross_scales(robot, q, qd, qdd, jnp.zeros(3))
 
 
