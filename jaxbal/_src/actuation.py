@@ -82,3 +82,21 @@ def _actuator_torques(
     else:
         torques = a.T @ jnp.linalg.solve(a @ a.T, basis.T @ forces)
     return checked_finite("actuator torques", robot, torques)
+
+
+def actuator_torque_rate(
+    robot: Robot,
+    q: Coordinates,
+    qd: Coordinates,
+    qdd: Coordinates,
+    qddd: Coordinates,
+    gravity: Vec3 | None = None,
+) -> Float[Array, " a"]:
+    """Actuator torque rates ``dτ/dt = ∂τ/∂q·q̇ + ∂τ/∂q̇·q̈ + ∂τ/∂q̈·q⃛`` ``(a,)`` [N·m/s,
+    N/s] at one state with its jerk ``q⃛`` (one ``jvp`` of :func:`actuator_torques`;
+    closed chains included). The torque-rate limit of Briot et al. (2012), eq (6)."""
+
+    def torques(a, b, c):
+        return actuator_torques(robot, a, b, c, gravity)
+
+    return jax.jvp(torques, (q, qd, qdd), (qd, qdd, qddd))[1]

@@ -47,7 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.actuation import actuator_torques
+from jaxbal._src.actuation import actuator_torque_rate, actuator_torques
 from jaxbal._src.along_motion import batched
 from jaxbal._src.linalg import matvec, safe_sqrt
 from jaxbal._src.merged_guards import merged_guards
@@ -189,14 +189,8 @@ def rms_torque(robot: Robot, motion: Motion) -> Scalar:
 
 
 def torque_rate(robot: Robot, q, qd, qdd, qddd) -> Array:
-    """Actuator torque rates ``dτ/dt = ∂τ/∂q·q̇ + ∂τ/∂q̇·q̈ + ∂τ/∂q̈·q⃛`` [N·m/s, N/s]
-    at one state (one ``jvp`` of :func:`jaxbal.actuator_torques`; closed chains
-    included)."""
-
-    def torques(a, b, c):
-        return actuator_torques(robot, a, b, c)
-
-    return jax.jvp(torques, (q, qd, qdd), (qd, qdd, qddd))[1]
+    """:func:`~jaxbal._src.actuation.actuator_torque_rate` at one state (no gravity)."""
+    return actuator_torque_rate(robot, q, qd, qdd, qddd)
 
 
 def peak_torque_rate(robot: Robot, motion: JerkMotion) -> Scalar:

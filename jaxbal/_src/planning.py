@@ -28,8 +28,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._src.actuation import actuator_torque_rate, actuator_torques
 from jaxbal._src.com_ik import com_inverse_kinematics
-from jaxbal._src.dynamics import inverse_dynamics, inverse_dynamics_rate
 from jaxbal._src.linalg import safe_sqrt
 from jaxbal._src.momentum import center_of_mass, shaking_wrench
 from jaxbal._src.profiles import Profile
@@ -170,28 +170,35 @@ def _wrench_along(robot: Robot, path: Callable, times, gravity):
 
 def torques_along(
     robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
-) -> Float[Array, "t dof"]:
-    """Actuator torques ``τ`` ``(t, dof)`` [N·m] along a trajectory (serial arms);
-    compiled as :func:`wrench_along`."""
+) -> Float[Array, "t a"]:
+    """Actuator torques/forces ``τ`` ``(t, a)`` [N·m, N] along a trajectory
+    (:func:`jaxbal.actuator_torques`: any robot, closed chains included, the actuators
+    of ``robot.actuated``); compiled as :func:`wrench_along`."""
     return checked_call(_torques_along, robot, path, times, gravity)
 
 
 def _torques_along(robot: Robot, path: Callable, times, gravity):
     q, qd, qdd = sample(path, times, order=2)
-    return jax.vmap(lambda a, b, c: inverse_dynamics(robot, a, b, c, gravity))(q, qd, qdd)
+    return jax.vmap(lambda a, b, c: actuator_torques(robot, a, b, c, gravity))(q, qd, qdd)
 
 
 def torque_rate_along(
     robot: Robot, path: Callable, times: Float[Array, " t"], gravity=None
-) -> Float[Array, "t dof"]:
-    """Actuator torque rates ``dτ/dt`` ``(t, dof)`` [N·m/s] along a trajectory (serial
-    arms); compiled as :func:`wrench_along`."""
+) -> Float[Array, "t a"]:
+    """Actuator torque rates ``dτ/dt`` ``(t, a)`` [N·m/s, N/s] along a trajectory (one
+    ``jvp`` of :func:`jaxbal.actuator_torques`: any robot, closed chains included);
+    compiled as :func:`wrench_along`.
+
+    Before, both functions returned the generalised forces of *all* coordinates
+    (:func:`jaxbal.inverse_dynamics`), the actuator torques of a serial arm whose
+    coordinates are all actuated but not of a closed chain, whose rate-limited plan
+    (:func:`~jaxbal.planning.plan_rate_limited`) then bounded internal forces."""
     return checked_call(_torque_rate_along, robot, path, times, gravity)
 
 
 def _torque_rate_along(robot: Robot, path: Callable, times, gravity):
     q, qd, qdd, qddd = sample(path, times, order=3)
-    return jax.vmap(lambda a, b, c, d: inverse_dynamics_rate(robot, a, b, c, d, gravity))(
+    return jax.vmap(lambda a, b, c, d: actuator_torque_rate(robot, a, b, c, d, gravity))(
         q, qd, qdd, qddd
     )
 

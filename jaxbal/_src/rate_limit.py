@@ -88,7 +88,8 @@ def plan_rate_limited(
     """Optimal trapezoidal profile under a torque-rate limit (Briot et al. 2012, eqs 5-6).
 
     Args:
-        robot: a robot with independent coordinates (serial arm).
+        robot: any robot (closed chains included: the rates of its actuators'
+            torques, :func:`~jaxbal.planning.torque_rate_along`).
         make_path: ``(profile, data) ↦ trajectory`` (e.g. a COM line with that
             profile). Define it once at module level: compiled code is reused across
             calls with the same ``make_path`` and new ``data``.

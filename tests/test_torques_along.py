@@ -1,0 +1,75 @@
+"""Actuator torques and their rates along a trajectory, any robot.
+
+Before, ``torques_along`` and ``torque_rate_along`` returned the generalised forces of
+*all* coordinates (``inverse_dynamics``): the actuator torques of a serial arm with
+every coordinate actuated, but not of a closed chain (the Orthoglide's actuated rates
+were 530 N/s off), so a rate-limited plan of a closed chain bounded internal forces.
+References: ``jaxbal.actuator_torques`` at the joint motion's samples (1e-12), central
+finite differences in time (1e-6 relative), and the serial closed case, where the rates
+equal ``inverse_dynamics_rate`` (1e-10 relative).
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxbal
+from jaxbal import robots
+from jaxbal._src.dynamics import inverse_dynamics_rate
+from jaxbal.planning import EndEffectorLine, torque_rate_along, torques_along
+from jaxbal.profiles import Quintic
+
+GRAVITY = (0.0, 0.0, -9.81)
+CASES = {
+    "planar_2r": (robots.planar_2r(), (0.4, 0.3), (0.2, 0.5)),
+    "orthoglide": (robots.orthoglide(payload=1.0), (0.0, 0.0, 0.0), (-0.1, 0.07, -0.11)),
+}
+
+
+def _path(name):
+    robot, start, end = CASES[name]
+    line = jaxbal.StraightLine(jnp.asarray(start), jnp.asarray(end), Quintic(), 0.2)
+    return robot, EndEffectorLine(robot, line)
+
+
+@pytest.mark.parametrize("name", sorted(CASES))
+def test_torques_and_rates_are_the_actuators(name):
+    """(t, a) actuator torques equal ``actuator_torques`` at the samples; their rates
+    equal central differences of the torques in time (h = 1e-5 s)."""
+    robot, path = _path(name)
+    times = jnp.linspace(0.02, 0.18, 9)
+    torques = np.asarray(torques_along(robot, path, times, gravity=GRAVITY))
+    assert torques.shape == (9, len(robot.actuated))
+    for k in (0, 4, 8):
+        state = jaxbal.joint_motion(robot, path, times[k])
+        expected = jaxbal.actuator_torques(robot, *state, gravity=GRAVITY)
+        np.testing.assert_allclose(torques[k], expected, rtol=1e-12, atol=1e-12)
+    rates = np.asarray(torque_rate_along(robot, path, times, gravity=GRAVITY))
+    h = 1e-5
+    ahead, behind = (torques_along(robot, path, times + s, gravity=GRAVITY) for s in (h, -h))
+    central = (np.asarray(ahead) - np.asarray(behind)) / (2 * h)
+    assert np.max(np.abs(rates - central)) < 1e-6 * np.max(np.abs(rates))
+    assert np.all(np.isfinite(rates))
+
+
+def test_serial_rates_equal_the_generalised_forces_rates():
+    """2R, every coordinate actuated: the actuator rates are the generalised ones."""
+    robot, path = _path("planar_2r")
+    times = jnp.linspace(0.0, 0.2, 11)
+    q, qd, qdd, qddd = jaxbal.sample(path, times, order=3)
+    generalised = jax.vmap(lambda *s: inverse_dynamics_rate(robot, *s))(q, qd, qdd, qddd)
+    rates = torque_rate_along(robot, path, times)
+    np.testing.assert_allclose(rates, generalised, rtol=1e-10, atol=1e-10 * np.max(np.abs(rates)))
+
+
+def test_closed_chain_rates_differ_from_the_generalised_forces():
+    """Orthoglide: the actuated columns of the generalised forces' rates are not the
+    actuator torque rates (the old result), by far more than rounding."""
+    robot, path = _path("orthoglide")
+    times = jnp.linspace(0.02, 0.18, 5)
+    q, qd, qdd, qddd = jaxbal.sample(path, times, order=3)
+    generalised = jax.vmap(lambda *s: inverse_dynamics_rate(robot, *s))(q, qd, qdd, qddd)
+    rates = np.asarray(torque_rate_along(robot, path, times))
+    gap = np.max(np.abs(np.asarray(generalised)[:, list(robot.actuated)] - rates))
+    assert gap > 1e-2 * np.max(np.abs(rates))
