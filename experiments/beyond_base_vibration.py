@@ -20,7 +20,6 @@ No paper value: the papers stop at the shaking force.
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 import matplotlib
 import numpy as np
@@ -28,7 +27,13 @@ import numpy as np
 matplotlib.use("Agg")
 
 import jaxbal  # noqa: E402
-from jaxbal.design import ComTrapezoid, Motion, joint_codesign, motion_samples  # noqa: E402
+from jaxbal.design import (  # noqa: E402
+    ComTrapezoid,
+    Motion,
+    joint_codesign,
+    motion_samples,
+    wrench_samples,
+)
 from jaxbal.planning import com_line  # noqa: E402
 from jaxbal.profiles import BangBang  # noqa: E402
 from jaxbal.report import Experiment, Result, Table, plot_histories  # noqa: E402
@@ -65,7 +70,7 @@ def _shaped(arm, factory, metrics):
 
 def _ringing(robot, motion, times):
     """The base's y displacement [µm] during the move and for one more move time."""
-    force, moment = jax.vmap(lambda *state: jaxbal.shaking_wrench(robot, *state))(*motion)
+    force, moment = wrench_samples(robot, motion)
     tail = times[1:] + times[-1]
     force = jnp.concatenate([force, jnp.zeros((tail.size, 3))])
     moment = jnp.concatenate([moment, jnp.zeros((tail.size, 3))])

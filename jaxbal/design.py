@@ -1,4 +1,5 @@
-"""Counter-mass co-design for every robot: sampled motions, metrics and :func:`codesign`.
+"""Counter-mass co-design for every robot: sampled motions, the wrench and torques at
+their samples, metrics and :func:`codesign`.
 
 See :mod:`jaxbal._src.design` (loss, bounds, compilation) and :mod:`jaxbal._src.metrics`
 (the table of metrics and their units).
@@ -34,6 +35,8 @@ from jaxbal._src.metrics import (
     rms_force,
     rms_moment,
     rms_torque,
+    torque_samples,
+    wrench_samples,
 )
 from jaxbal._src.motion_factories import ComTrapezoid, TrapezoidLine
 from jaxbal._src.multistart import MultiStart, multistart_joint_codesign
@@ -84,4 +87,6 @@ __all__ = [
     "rms_force",
     "rms_moment",
     "rms_torque",
+    "torque_samples",
+    "wrench_samples",
 ]

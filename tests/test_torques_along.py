@@ -73,3 +73,36 @@ def test_closed_chain_rates_differ_from_the_generalised_forces():
     rates = np.asarray(torque_rate_along(robot, path, times))
     gap = np.max(np.abs(np.asarray(generalised)[:, list(robot.actuated)] - rates))
     assert gap > 1e-2 * np.max(np.abs(rates))
+
+
+def test_samples_of_a_motion_equal_a_loop_and_the_metrics():
+    """``wrench_samples`` / ``torque_samples`` of the DUAL-V along 7 samples equal a
+    Python loop of the single-state functions (1e-12), compiled equals eager, and the
+    peak metrics are their largest norms."""
+    from jaxbal.design import (
+        motion_samples,
+        peak_force,
+        peak_torque,
+        torque_samples,
+        wrench_samples,
+    )
+
+    robot = robots.dual_v()
+    line = jaxbal.StraightLine(jnp.zeros(3), jnp.array([0.05, 0.05, 0.0]), Quintic(), 0.2)
+    motion = motion_samples(robot, EndEffectorLine(robot, line), jnp.linspace(0, 0.2, 7))
+    force, moment = wrench_samples(robot, motion)
+    torques = torque_samples(robot, motion)
+    assert force.shape == moment.shape == (7, 3) and torques.shape == (7, 4)
+    for k in range(7):
+        state = (motion.q[k], motion.qd[k], motion.qdd[k])
+        f, m = jaxbal.shaking_wrench(robot, *state)
+        np.testing.assert_allclose(force[k], f, rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(moment[k], m, rtol=1e-12, atol=1e-12)
+        tau = jaxbal.actuator_torques(robot, *state)
+        np.testing.assert_allclose(torques[k], tau, rtol=1e-12, atol=1e-12)
+    compiled = jax.jit(wrench_samples)(robot, motion)
+    np.testing.assert_allclose(compiled[0], force, rtol=1e-12, atol=1e-12)
+    assert float(peak_force(robot, motion)) == pytest.approx(np.max(np.linalg.norm(force, axis=1)))
+    assert float(peak_torque(robot, motion)) == pytest.approx(
+        np.max(np.linalg.norm(torques, axis=1))
+    )

@@ -90,6 +90,8 @@ __all__ = [
     "rms_force",
     "rms_moment",
     "rms_torque",
+    "torque_samples",
+    "wrench_samples",
 ]
 
 
@@ -103,12 +105,23 @@ ADDED_MASS_VARIABLES = ("counter_mass", "vertical_counterweight")
 # --- metrics -----------------------------------------------------------------------------
 
 
-def _wrench(robot: Robot, motion: Motion):
+def wrench_samples(robot: Robot, motion: Motion) -> tuple[Float[Array, "t 3"], ...]:
+    """Shaking force ``(t, 3)`` [N] and moment ``(t, 3)`` [N·m] at every sample of the
+    motion (:func:`jaxbal.shaking_wrench` under ``vmap``; what the wrench metrics
+    reduce). Eagerly the robot, the finite states and a closed chain's loop closures are
+    checked first (``ValueError`` naming the samples) and the samples run as one
+    compiled program; under ``jit``/``grad`` a plain ``vmap``."""
     return batched(shaking_wrench, robot, motion, "shaking wrench")
 
 
-def _torques(robot: Robot, motion: Motion):
+def torque_samples(robot: Robot, motion: Motion) -> Float[Array, "t a"]:
+    """Actuator torques/forces ``(t, a)`` [N·m, N] at every sample of the motion
+    (:func:`jaxbal.actuator_torques`, closed chains included; checked as
+    :func:`wrench_samples`)."""
     return batched(actuator_torques, robot, motion, "actuator torques")
+
+
+_wrench, _torques = wrench_samples, torque_samples
 
 
 def _rms(vectors: Float[Array, "t k"]) -> Scalar:
