@@ -173,6 +173,17 @@ def balance(
         help="--start and --end are joint configurations (rad, m): the tool moves on the "
         "straight line between their poses",
     ),
+    base_mass: float = typer.Option(
+        None,
+        "--base-mass",
+        help="mass of the frame under the robot (kg, the robot's not included): print the "
+        "frame's residual vibration after the move, before and after balancing "
+        "(jaxbal.vibration; with --base-frequency)",
+    ),
+    base_frequency: float = typer.Option(
+        None, "--base-frequency", help="natural frequency of the frame alone on its mounts (Hz)"
+    ),
+    base_damping: float = typer.Option(0.02, "--base-damping", help="damping ratio of the frame"),
 ):
     """Shaking-force peaks of a move of ROBOT and a force-balancing counter-mass design."""
     from jaxbal._src.robots.mjcf_balance import balance as codesign_counter_masses
@@ -213,9 +224,13 @@ def balance(
         bodies = None if counter_bodies is None else counter_bodies.split(",")
         start_design = with_counter_masses(mechanism, bodies)
         free = ("counter_position", "counter_mass") if free_masses else ("counter_position",)
+        vibration = _base_vibration(base_mass, base_frequency, base_damping, duration, samples)
         result = codesign_counter_masses(
             start_design, motion, free=free, objective=objective, **bounds
         )
+        if vibration is not None:
+            bare = start_design.with_design({"counter_mass": 0.0 * start_design.counter_mass})
+            residuals = [float(vibration(r, motion)) for r in (bare, result.robot)]
         if out is not None:
             export_balanced(robot, result.robot, out, ignore_meshes=ignore_meshes)
     except ValueError as error:
@@ -246,6 +261,12 @@ def balance(
             "[!] the balanced peak force exceeds the robot's without counter-masses: "
             "the masses or their bounds cannot balance this move (try --free-masses, "
             "a wider --position-bound or other --counter-bodies)"
+        )
+    if vibration is not None:
+        typer.echo(
+            f"residual vibration of the frame ({base_mass:g} kg, {base_frequency:g} Hz alone, "
+            f"damping {base_damping:g}) after the move: {residuals[0] * 1e6:.6g} µm, "
+            f"balanced {residuals[1] * 1e6:.6g} µm"
         )
     if conditions:
         from jaxbal._src.regressor import balancing_conditions
@@ -344,3 +365,17 @@ def plot_command(
 
 if __name__ == "__main__":
     app()
+
+
+def _base_vibration(mass, frequency, damping, duration, samples):
+    """The residual-vibration metric of a rigid frame on springs along x, y, z carrying
+    the robot (``None`` without ``--base-mass``); refuses half a base."""
+    if (mass is None) != (frequency is None):
+        raise ValueError("--base-mass and --base-frequency go together")
+    if mass is None:
+        return None
+    from jaxbal import sample_times
+    from jaxbal.vibration import BaseVibration, rigid_base
+
+    frame = rigid_base(mass, frequency, damping, axes=("x", "y", "z"))
+    return BaseVibration(frame, sample_times(duration, samples), carries_robot=True)
