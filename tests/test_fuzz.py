@@ -31,6 +31,9 @@ settings.load_profile("jaxbal")
 
 TINY = np.finfo(float).tiny  # smallest normal float64
 ROBOTS = {name: getattr(jaxbal.robots, name)() for name in ("planar_2r", "scara", "dual_v")}
+#: the closed chains, whose states the fuzz takes on their loops (jaxbal.pose_motion)
+CLOSED = ("dual_v",)
+_POSE_MOTION = eqx.filter_jit(jaxbal.pose_motion)
 NAMED = ("q must have shape", "qd must have shape", "qdd must have shape", "non-finite state",
          "body masses", "body inertias", "gravity must have shape",
          "(overflow: robot parameters or state too large); largest robot parameter")  # fmt: skip
@@ -64,7 +67,11 @@ def test_shaking_wrench(name, mass_scale, state, shape_error):
     if leaf is not None:
         robot = eqx.tree_at(lambda r: r.masses, robot, robot.masses * mass_scale)
     rng = np.random.default_rng(abs(hash((name, shape_error))) % 2**32)
-    q, qd, qdd = (jnp.asarray(rng.uniform(-1, 1, robot.dof) * s) for s in state)
+    if name in CLOSED:  # on its loops: the IK's motion at the centre, hostile pose rates
+        rates = [jnp.full(3, s) for s in state[1:]]
+        q, qd, qdd = _POSE_MOTION(robot, jnp.zeros(3), *rates)
+    else:
+        q, qd, qdd = (jnp.asarray(rng.uniform(-1, 1, robot.dof) * s) for s in state)
     if shape_error:
         bad = {"q": q, "qd": qd, "qdd": qdd}
         bad[shape_error] = bad[shape_error][:-1]

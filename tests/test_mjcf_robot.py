@@ -27,6 +27,7 @@ from typer.testing import CliRunner
 
 import jaxbal
 from jaxbal import robots
+from jaxbal._src.momentum import tree_wrench
 from jaxbal._src.robots.mjcf_balance import _singular_start
 from jaxbal._src.robots.mjcf_solve import pose_equations
 from jaxbal.design import peak_force
@@ -281,8 +282,9 @@ def _both_wrenches(builtin, imported, tree, q, qd, qdd):
         return jax.jvp(tree.coordinates, (x,), (xd,))
 
     (p, pd), (_, pdd) = jax.jvp(velocity, (q, qd), (qd, qdd))
-    original = jnp.concatenate(jaxbal.shaking_wrench(builtin, q, qd, qdd))
-    return original, jnp.concatenate(jaxbal.shaking_wrench(imported, p, pd, pdd))
+    # the bodies' wrench at any state (tree_wrench: the DUAL-V's loops not required)
+    original = jnp.concatenate(tree_wrench(builtin, q, qd, qdd))
+    return original, jnp.concatenate(tree_wrench(imported, p, pd, pdd))
 
 
 @pytest.mark.slow

@@ -90,7 +90,8 @@ def test_3r_com_path_meets_eq20_and_objective_bounds_and_gradients():
     true_max = float(jnp.max(jnp.abs(wrench_along(robot, trajectory, times)[1][:, 2])))
     args = (robot, start, end, temperature, path, samples)
     smooth = float(pas.moment_objective(coefficients, *args))
-    assert true_max <= smooth <= true_max + temperature * np.log(samples) + 1e-12
+    rounding = 1e-12 * true_max  # two programs evaluate the moment
+    assert true_max - rounding <= smooth <= true_max + temperature * np.log(samples) + rounding
     objective = jax.jit(lambda c: pas.moment_objective(c, *args))
     check_grads(objective, (coefficients,), order=1, modes=("rev",), eps=1e-4, rtol=1e-4)
 
