@@ -68,3 +68,27 @@ def test_a_host_side_analysis_under_jit_is_refused_by_name():
 
     with pytest.raises(ValueError, match="outside jit"):
         jax.jit(lambda scale: balancing_conditions(ROBOT, MOTION).__class__ and scale)(1.0)
+
+
+DUAL_V = jaxbal.robots.dual_v()
+DUAL_V_STATE = jaxbal.pose_motion(DUAL_V, jnp.zeros(3), jnp.ones(3), jnp.full(3, 5.0))
+DUAL_V_LINE = jaxbal.StraightLine(jnp.zeros(3), jnp.array([0.05, 0.05, 0.0]), Quintic(), 0.2)
+DUAL_V_MOTION = motion_samples(DUAL_V, [EndEffectorLine(DUAL_V, DUAL_V_LINE)], TIMES)
+
+
+@pytest.mark.parametrize("name", ["shaking_wrench", "actuator_torques", "peak_torque"])
+def test_a_closed_chain_closed_over_checks_its_loops_in_the_users_jit(name):
+    """The DUAL-V's state and motion closed over (the loop check ran a compiled program
+    there and raised ``ConcretizationTypeError``): staged, the eager value; a state or
+    motion off the loops (a length changed under it) is refused by the runtime check."""
+    longer = eqx.tree_at(lambda r: r.l1, DUAL_V, DUAL_V.l1 * 1.01)
+    evaluate = {
+        "shaking_wrench": lambda r: jaxbal.shaking_wrench(r, *DUAL_V_STATE)[0],
+        "actuator_torques": lambda r: jaxbal.actuator_torques(r, *DUAL_V_STATE),
+        "peak_torque": lambda r: peak_torque(r, DUAL_V_MOTION),
+    }[name]
+    eager = np.asarray(evaluate(DUAL_V))
+    staged = np.asarray(jax.jit(lambda scale: evaluate(DUAL_V) * scale)(2.0))
+    np.testing.assert_allclose(staged, 2.0 * eager, rtol=1e-12, atol=1e-12)
+    with pytest.raises(Exception, match="loop closures"):
+        jax.block_until_ready(jax.jit(lambda scale: evaluate(longer) * scale)(2.0))

@@ -1,8 +1,9 @@
 """A one-state function evaluated at every sample of a motion (``vmap``), checked.
 
 :func:`batched` is what the metrics (:mod:`jaxbal._src.metrics`) and the wrench
-regressor run: traced (under ``jit``/``grad``) a plain ``vmap``; eagerly, the robot and
-the states are checked by name first and the samples run as one compiled program.
+regressor run: traced (under ``jit``/``grad``, or closed over by a ``jit``) a plain
+``vmap``; eagerly, the robot and the states are checked by name first and the samples
+run as one compiled program.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from jaxbal._src.momentum import check_robot, checked_finite
 from jaxbal._src.motion_samples import Motion, as_motion
 from jaxbal._src.robot import Robot
 from jaxbal._src.validation import (
+    _under_trace,
     is_traced,
     raise_if_invalid,
     runtime_checks,
@@ -36,7 +38,7 @@ def batched(evaluate, robot: Robot, motion: Motion, what: str, jerk: bool = Fals
     CpuCallback error``) instead of naming the offending value.
     """
     motion = motion if jerk else as_motion(motion)
-    if is_traced(robot, motion):
+    if is_traced(robot, motion) or _under_trace():  # traced, or closed over by a jit
         return (samples if run is None else run)(evaluate, robot, motion)
     run = compiled_samples if run is None else run
     check_robot(robot)

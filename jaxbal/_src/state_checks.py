@@ -11,25 +11,64 @@ import numpy as np
 from jaxbal._src.loop_checks import MESSAGE as LOOP_MESSAGE
 from jaxbal._src.loop_checks import check_loops_eagerly, closure_excess, has_loops
 from jaxbal._src.robot import Robot
-from jaxbal._src.validation import check_shape, guard, is_traced, runtime_checks_enabled
+from jaxbal._src.validation import (
+    _under_trace,
+    check_shape,
+    guard,
+    is_traced,
+    runtime_checks_enabled,
+)
 
 #: the message of a non-finite state (the offending values follow it)
 MESSAGE = "non-finite state (q, qd, qdd)"
 
 
-def state_check(robot: Robot, q, qd, qdd, loops: bool = False):
-    """``(q, q̇, q̈, check)``: the state as float arrays, shape-checked ``(dof,)``, and
-    ``check(outputs)`` that guards the outputs computed from it with the state's
-    finiteness (message ``non-finite state (q, qd, qdd)``, the state as offending values).
+class StateCheck:
+    """The checks of one state, applied to the outputs computed from it
+    (:func:`state_check`).
 
-    With ``loops`` (the physics of a *motion* of the robot: the shaking wrench, the
-    actuator torques), ``check.loops(outputs, excess=None)`` guards them with a closed
-    chain's loop closures (:mod:`jaxbal._src.loop_checks`), to be applied after the
-    robot's own checks (a negative length is named as such, not as the loops it opens);
-    ``excess`` is the :func:`~jaxbal._src.motion.loop_excess` the caller computed with
-    its outputs, else it is computed here. ``check.traced_loops`` tells the caller
-    whether that check is traced (a closed chain under a trace with the runtime checks
-    on), so that it computes the excess with its physics.
+    Calling it guards the outputs with the state's finiteness (message ``non-finite
+    state (q, qd, qdd)``, the state as offending values). :meth:`loops` guards them with
+    a closed chain's loop closures (:mod:`jaxbal._src.loop_checks`); ``traced_loops``
+    tells the caller whether that check is traced (a closed chain under a trace with the
+    runtime checks on), so that it computes the residual with its physics.
+    """
+
+    def __init__(self, robot: Robot, state: tuple, concrete: bool, loops: bool):
+        self.robot, self.state, self.concrete = robot, state, concrete
+        # eagerly (concrete robot and state, outside any trace: a closed-over state
+        # under a user's jit is staged, its compiled check would give a tracer)
+        self.eager_loops = loops and concrete and not is_traced(robot) and not _under_trace()
+        self.traced_loops = (
+            loops and not self.eager_loops and runtime_checks_enabled() and has_loops(robot)
+        )
+
+    def __call__(self, outputs):
+        if self.concrete or not runtime_checks_enabled():
+            return outputs  # checked at once, or nothing traced for a check that is off
+        q, qd, qdd = self.state
+        # elementwise, not of a stacked copy: XLA wrote the stacked batch to memory
+        invalid = ~(jnp.isfinite(q) & jnp.isfinite(qd) & jnp.isfinite(qdd))
+        return guard(outputs, invalid, MESSAGE, self.state)
+
+    def loops(self, outputs, excess=None):
+        """``outputs`` guarded by the loop closures, to be applied after the robot's own
+        checks (a negative length is named as such, not as the loops it opens): eagerly
+        the whole state (Φ, Φ̇, Φ̈); traced, ``excess`` (the
+        :func:`~jaxbal._src.loop_checks.closure_excess` the caller computed with its
+        outputs; else computed here)."""
+        if self.eager_loops:
+            check_loops_eagerly(self.robot, *self.state)
+        if not (self.traced_loops and runtime_checks_enabled()):
+            return outputs
+        excess = closure_excess(self.robot, self.state[0]) if excess is None else excess
+        return guard(outputs, ~(excess <= 1.0), LOOP_MESSAGE, excess)
+
+
+def state_check(robot: Robot, q, qd, qdd, loops: bool = False):
+    """``(q, q̇, q̈, check)``: the state as float arrays, shape-checked ``(dof,)``, and its
+    :class:`StateCheck`; ``loops``: the physics of a *motion* of the robot (the shaking
+    wrench, the actuator torques), whose closed chain must close its loops.
 
     Under ``jit`` the guard is applied to the outputs rather than threaded through the
     state: a runtime check's value passes a barrier (a ``cond``), and a state taken
@@ -43,27 +82,7 @@ def state_check(robot: Robot, q, qd, qdd, loops: bool = False):
     if concrete:  # concrete (even inside a jit): checked in NumPy now
         state = np.stack([np.asarray(q), np.asarray(qd), np.asarray(qdd)])
         guard(None, ~np.isfinite(state), MESSAGE, state)
-    eager_loops = loops and concrete and not is_traced(robot)
-    traced_loops = loops and not eager_loops and runtime_checks_enabled() and has_loops(robot)
-
-    def check(outputs):
-        if concrete or not runtime_checks_enabled():
-            return outputs  # checked above, or nothing traced for a check that is off
-        # elementwise, not of a stacked copy: XLA wrote the stacked batch to memory
-        invalid = ~(jnp.isfinite(q) & jnp.isfinite(qd) & jnp.isfinite(qdd))
-        return guard(outputs, invalid, MESSAGE, (q, qd, qdd))
-
-    def loop_check(outputs, excess=None):
-        if eager_loops:
-            check_loops_eagerly(robot, q, qd, qdd)
-        if not (traced_loops and runtime_checks_enabled()):
-            return outputs
-        excess = closure_excess(robot, q) if excess is None else excess
-        return guard(outputs, ~(excess <= 1.0), LOOP_MESSAGE, excess)
-
-    check.loops = loop_check
-    check.traced_loops = traced_loops
-    return q, qd, qdd, check
+    return q, qd, qdd, StateCheck(robot, (q, qd, qdd), concrete, loops)
 
 
 def checked_state(robot: Robot, q, qd, qdd):
