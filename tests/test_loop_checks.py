@@ -82,7 +82,7 @@ def test_held_motion_of_a_changed_geometry_is_refused(name):
         jax.block_until_ready(grad(changed))
 
 
-@pytest.mark.parametrize("name", sorted(CASES))
+@pytest.mark.parametrize("name", slow_for(sorted(CASES), "orthoglide"))
 def test_consistent_motion_values_unchanged_by_the_check(name):
     """The fused loop check changes no value: the checked compiled program equals the
     unchecked one (runtime checks off; 1e-14 relative, XLA fuses the two programs
