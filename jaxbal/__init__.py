@@ -15,7 +15,7 @@ import importlib
 
 from jaxbal import balancing, design, planning, profiles, robots, sensitivity, sweep, vibration  # noqa: E402, I001, E501
 from jaxbal._src import config as _config  # noqa: F401  (enables float64 once)
-from jaxbal._src.actuation import actuator_torques, velocity_basis
+from jaxbal._src.actuation import actuator_torque_rate, actuator_torques, velocity_basis
 from jaxbal._src.dynamics import (
     inverse_dynamics,
     inverse_dynamics_rate,
@@ -63,6 +63,7 @@ __all__ = [
     "RootSolution",
     "Solution",
     "StraightLine",
+    "actuator_torque_rate",
     "actuator_torques",
     "balancing",
     "body_com_positions",

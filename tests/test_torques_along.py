@@ -54,6 +54,9 @@ def test_torques_and_rates_are_the_actuators(name):
     central = (np.asarray(ahead) - np.asarray(behind)) / (2 * h)
     assert np.max(np.abs(rates - central)) < 1e-6 * np.max(np.abs(rates))
     assert np.all(np.isfinite(rates))
+    q, qd, qdd, qddd = jaxbal.sample(path, times[4:5], order=3)
+    one = jaxbal.actuator_torque_rate(robot, q[0], qd[0], qdd[0], qddd[0], gravity=GRAVITY)
+    np.testing.assert_allclose(one, rates[4], rtol=1e-12, atol=1e-12 * np.max(np.abs(rates)))
     if name == "orthoglide":
         q, qd, qdd, qddd = jaxbal.sample(path, times, order=3)
         old = jax.vmap(lambda *s: inverse_dynamics_rate(robot, *s, GRAVITY))(q, qd, qdd, qddd)
