@@ -20,8 +20,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.dynamics import _inverse_dynamics
-from jaxbal._src.momentum import checked_finite
 from jaxbal._src.robot import Robot
+from jaxbal._src.robot_checks import checked_finite
 from jaxbal._src.types import Array, Coordinates, Float, Vec3
 
 

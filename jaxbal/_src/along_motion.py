@@ -13,9 +13,9 @@ import jax
 import numpy as np
 
 from jaxbal._src.loop_checks import check_samples_eagerly
-from jaxbal._src.momentum import check_robot, checked_finite
 from jaxbal._src.motion_samples import Motion, as_motion
 from jaxbal._src.robot import Robot
+from jaxbal._src.robot_checks import check_robot, checked_finite
 from jaxbal._src.validation import (
     _under_trace,
     is_traced,

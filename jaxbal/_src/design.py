@@ -106,11 +106,11 @@ from jaxbal._src.metrics import (
     metric_name,
     resolve_metric,
 )
-from jaxbal._src.momentum import check_robot
 from jaxbal._src.motion_samples import ReducedMotion
 from jaxbal._src.optimize import minimize
 from jaxbal._src.reduced_motion import REDUCE_MIN_VARIABLES, reduce_motion, reduces
 from jaxbal._src.robot import Robot
+from jaxbal._src.robot_checks import check_robot
 from jaxbal._src.validation import check_stopping, runtime_checks
 
 __all__ = [

@@ -162,7 +162,7 @@ def given_or(robot: Robot, designed: Robot, at_start) -> Robot:
 
 def _loss_grad(params, robot: Robot, motion: Motion, problem: _Problem, at_start):
     """Loss, gradient and metric values, and the metrics' scale floors. The caller
-    checks the robot before (:func:`~jaxbal._src.momentum.check_robot`) and the motion
+    checks the robot before (:func:`~jaxbal._src.robot_checks.check_robot`) and the motion
     and the values on the host: no runtime-error callbacks, so that the compiled program
     is stored in the persistent compilation cache. Runtime checks are off while it is
     traced (line-search trials may be non-finite)."""

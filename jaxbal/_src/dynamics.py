@@ -37,13 +37,9 @@ import jax.numpy as jnp
 from jaxbal._src.linalg import cross, matvec, rmatvec, world_inertia_times
 from jaxbal._src.loop_checks import with_loop_excess
 from jaxbal._src.merged_guards import merged_guards
-from jaxbal._src.momentum import (
-    _REPLAY,
-    body_com_positions,
-    body_velocities,
-    checked_physics,
-)
+from jaxbal._src.momentum import _REPLAY, body_com_positions, body_velocities
 from jaxbal._src.robot import Robot
+from jaxbal._src.robot_checks import checked_physics
 from jaxbal._src.state_checks import state_check
 from jaxbal._src.straight_line import straight_line
 from jaxbal._src.types import Array, Coordinates, Float, Scalar, Vec3

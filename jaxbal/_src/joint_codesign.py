@@ -55,9 +55,10 @@ from jaxbal._src.design_loss import (
 from jaxbal._src.design_solution import _contacts, bound_contacts
 from jaxbal._src.lbfgs import lbfgs
 from jaxbal._src.metrics import Motion, check_design_names, metric_name, resolve_metric
-from jaxbal._src.momentum import check_robot, replayed
+from jaxbal._src.momentum import replayed
 from jaxbal._src.optimize import minimize
 from jaxbal._src.robot import Robot
+from jaxbal._src.robot_checks import check_robot
 from jaxbal._src.types import Array, Scalar
 from jaxbal._src.validation import check_stopping, checked_call, runtime_checks
 
@@ -175,8 +176,7 @@ def payload_metrics(robot: Robot, motion: MotionFactory, trajectory, payloads, m
     trajectory = {k: jnp.asarray(v, float) for k, v in trajectory.items()}
     payloads = jnp.asarray(payloads, float).reshape(-1)
     check_robot(robot)  # before the (larger) program compiles
-    # checked: a bad robot or motion raises ValueError with the values (not a runtime
-    # error from inside the program)
+    # checked: a bad robot or motion raises ValueError with the values, not a runtime error
     return checked_call(_per_payload, robot, motion, trajectory, payloads, tuple(metrics))
 
 

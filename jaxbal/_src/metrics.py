@@ -51,11 +51,7 @@ from jaxbal._src.actuation import actuator_torque_rate, actuator_torques
 from jaxbal._src.along_motion import batched
 from jaxbal._src.linalg import matvec, safe_sqrt
 from jaxbal._src.merged_guards import merged_guards
-from jaxbal._src.momentum import (
-    body_com_poses,
-    checked_physics,
-    shaking_wrench,
-)
+from jaxbal._src.momentum import body_com_poses, shaking_wrench
 from jaxbal._src.motion_samples import (
     JerkMotion,
     Motion,
@@ -65,6 +61,7 @@ from jaxbal._src.motion_samples import (
 )
 from jaxbal._src.peak_sample import peak, peak_abs, unit_scale
 from jaxbal._src.robot import Robot
+from jaxbal._src.robot_checks import checked_physics
 from jaxbal._src.types import Array, Float, Scalar
 from jaxbal._src.validation import guard, is_traced
 

@@ -35,14 +35,7 @@ from jaxbal._src.loop_checks import loops_faulty, with_loop_excess
 from jaxbal._src.merged_guards import merged_guards
 from jaxbal._src.planar import PlanarRobot, planar_inertial_wrench
 from jaxbal._src.robot import Robot
-from jaxbal._src.robot_checks import (  # noqa: F401  (re-exported: the physics' checks)
-    check_robot,
-    checked_bodies,
-    checked_finite,
-    checked_parameters,
-    checked_physics,
-    robot_faulty,
-)
+from jaxbal._src.robot_checks import checked_physics, robot_faulty
 from jaxbal._src.state_checks import state_check
 from jaxbal._src.straight_line import straight_line
 from jaxbal._src.types import Coordinates, Points, Rotations, Scalar, Vec3

@@ -37,11 +37,12 @@ from collections.abc import Callable
 import equinox as eqx
 import jax.numpy as jnp
 
-from jaxbal._src.momentum import body_com_positions, check_robot
+from jaxbal._src.momentum import body_com_positions
 from jaxbal._src.motion_samples import JerkMotion, Motion
 from jaxbal._src.planning import EndEffectorLine, com_line
 from jaxbal._src.profiles import BoundaryPolynomial, TrapezoidalAcceleration
 from jaxbal._src.robot import Robot
+from jaxbal._src.robot_checks import check_robot
 from jaxbal._src.trajectory import StraightLine, sample
 from jaxbal._src.types import Array
 from jaxbal._src.validation import checked_call, guard

@@ -58,13 +58,9 @@ from jaxbal._src.along_motion import batched
 from jaxbal._src.linalg import cos_sin, matmul_transposed, vee
 from jaxbal._src.merged_guards import merged_guards
 from jaxbal._src.metrics import Motion
-from jaxbal._src.momentum import (
-    checked_bodies,
-    checked_finite,
-    checked_parameters,
-)
 from jaxbal._src.planar import PlanarRobot
 from jaxbal._src.robot import Bodies, Robot, rot_z_from
+from jaxbal._src.robot_checks import checked_bodies, checked_finite, checked_parameters
 from jaxbal._src.state_checks import state_check
 from jaxbal._src.types import Array, Coordinates
 from jaxbal._src.validation import _under_trace, runtime_checks, runtime_checks_enabled

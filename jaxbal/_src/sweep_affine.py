@@ -38,7 +38,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.momentum import checked_bodies, checked_parameters, shaking_wrench
+from jaxbal._src.momentum import shaking_wrench
+from jaxbal._src.robot_checks import checked_bodies, checked_parameters
 from jaxbal._src.sweep_program import PROGRAM_JITS, apply_parameters
 from jaxbal._src.validation import runtime_checks
 

@@ -21,11 +21,12 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.linalg import vee
-from jaxbal._src.momentum import check_robot, checked_finite, shaking_wrench
+from jaxbal._src.momentum import shaking_wrench
 from jaxbal._src.motion import states_valid
 from jaxbal._src.mujoco.inverse import base_reaction_and_closure, mjx_base_reaction, mjx_model
 from jaxbal._src.mujoco.tree import Tree
 from jaxbal._src.robot import Robot
+from jaxbal._src.robot_checks import check_robot, checked_finite
 from jaxbal._src.trajectory import sample
 from jaxbal._src.validation import raise_if_invalid, runtime_checks
 
