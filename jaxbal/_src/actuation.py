@@ -20,6 +20,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.dynamics import _inverse_dynamics
+from jaxbal._src.motion import has_loops
 from jaxbal._src.robot import Robot
 from jaxbal._src.robot_checks import checked_finite
 from jaxbal._src.types import Array, Coordinates, Float, Vec3
@@ -70,7 +71,7 @@ def _actuator_torques(
     loop-closure check (the benchmark's "before", which had none)."""
     forces = _inverse_dynamics(robot, q, qd, qdd, gravity, formulation, loops=loops)
     actuated = np.asarray(robot.actuated)
-    if jax.eval_shape(robot.constraint, q).shape[0] == 0:
+    if not has_loops(robot):
         return forces[actuated]
     basis = velocity_basis(robot, q)
     a = basis[actuated].T  # (m, a)

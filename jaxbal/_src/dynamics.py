@@ -35,7 +35,7 @@ import jax
 import jax.numpy as jnp
 
 from jaxbal._src.linalg import cross, matvec, rmatvec, world_inertia_times
-from jaxbal._src.loop_checks import with_loop_excess
+from jaxbal._src.loop_checks import with_closure_excess
 from jaxbal._src.merged_guards import merged_guards
 from jaxbal._src.momentum import _REPLAY, body_com_positions, body_velocities
 from jaxbal._src.robot import Robot
@@ -108,7 +108,7 @@ def _inverse_dynamics(
         straight = _straight_kane_forces_loops if check.traced_loops else _straight_kane_forces
         formulation = straight if _REPLAY.value else straight.as_written
     elif check.traced_loops:  # e.g. Lagrange's form: the loop residuals computed beside
-        formulation = with_loop_excess(formulation)
+        formulation = with_closure_excess(formulation)
     if not check.traced_loops:
         tau = formulation(robot, q, qd, qdd, gravity)
         return merged_guards(lambda t: check.loops(checked_physics(_FORCES, robot, check(t))), tau)
@@ -152,7 +152,7 @@ def _kane_forces(robot: Robot, q, qd, qdd, gravity) -> Coordinates:
 # coordinates 39 → 0.5 µs, 2.5 → 1.6 s.
 _straight_kane_forces = straight_line(_kane_forces)
 #: with the loop excess of a closed chain's state (:mod:`jaxbal._src.loop_checks`)
-_straight_kane_forces_loops = straight_line(with_loop_excess(_kane_forces))
+_straight_kane_forces_loops = straight_line(with_closure_excess(_kane_forces))
 
 
 def lagrange_forces(robot: Robot, q, qd, qdd, gravity=None) -> Coordinates:

@@ -18,7 +18,7 @@ functions, the metrics along a :class:`~jaxbal.design.Motion`) the whole state, 
 :func:`jaxbal.state_valid`), as the motion builders (:func:`jaxbal.joint_motion`,
 :func:`~jaxbal.design.motion_samples`) do. Compiled, the positions ``Φ(q)``
 (:func:`closure_excess`), computed with the wrench or the generalised forces as one
-straight-line program (:func:`with_loop_excess`) that shares their sines and cosines:
+straight-line program (:func:`with_closure_excess`) that shares their sines and cosines:
 the samples of a smooth motion whose positions close the loops have consistent rates
 (``Φ(q(t)) ≡ 0`` implies ``Φ̇ = Φ̈ = 0``), and a motion held while the geometry changed
 fails it; only a state whose rates were made by hand passes it, and the
@@ -35,7 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.motion import LOOP_TOLERANCE, loop_excess
+from jaxbal._src.motion import LOOP_TOLERANCE, has_loops, loop_excess
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
 
@@ -49,26 +49,20 @@ MESSAGE = (
 )
 
 
-def has_loops(robot: Robot) -> bool:
-    """Static: does the robot have loop closures (a constraint vector of length > 0)?"""
-    q = jax.ShapeDtypeStruct((robot.dof,), jnp.float64)
-    return jax.eval_shape(robot.constraint, q).shape[0] > 0
-
-
 def closure_excess(robot: Robot, q) -> Scalar:
     """``max |Φ(q)| / LOOP_TOLERANCE``: the positions' part of :func:`loop_excess` (the
     compiled check, module doc)."""
     return jnp.max(jnp.abs(robot.constraint(q))) / LOOP_TOLERANCE
 
 
-def with_loop_excess(physics):
+def with_closure_excess(physics):
     """``physics(robot, q, q̇, q̈, gravity)`` returning ``(output, closure_excess)``: one
     function, so that its straight-line replay computes both from shared terms."""
 
     def both(robot: Robot, q, qd, qdd, gravity):
         return physics(robot, q, qd, qdd, gravity), closure_excess(robot, q)
 
-    both.__name__ = both.__qualname__ = f"{physics.__name__}_with_loop_excess"
+    both.__name__ = both.__qualname__ = f"{physics.__name__}_with_closure_excess"
     return both
 
 
@@ -80,11 +74,6 @@ def loops_faulty(robot: Robot, q, qd, qdd) -> Array:
     return ~(loop_excess(robot, q, qd, qdd) <= 1.0)
 
 
-@eqx.filter_jit
-def _excess(robot: Robot, q, qd, qdd):
-    return loop_excess(robot, q, qd, qdd)
-
-
 def check_loops_eagerly(robot: Robot, q, qd, qdd) -> None:
     """Raise ``ValueError`` (:data:`MESSAGE` and the relative residual) if a concrete
     state of a closed chain is off its loops (one small program compiled per robot
@@ -92,7 +81,7 @@ def check_loops_eagerly(robot: Robot, q, qd, qdd) -> None:
     residual that overflows is refused too, as the compiled check does."""
     if not has_loops(robot):
         return
-    excess = float(_excess(robot, q, qd, qdd))
+    excess = float(_excesses(robot, q[None], qd[None], qdd[None])[0])
     if not excess <= 1.0:
         raise ValueError(f"{MESSAGE}: {excess:.3g}")
 

@@ -31,7 +31,7 @@ from jaxbal._src.linalg import (
     weighted_sum,
     world_inertia_times,
 )
-from jaxbal._src.loop_checks import loops_faulty, with_loop_excess
+from jaxbal._src.loop_checks import loops_faulty, with_closure_excess
 from jaxbal._src.merged_guards import merged_guards
 from jaxbal._src.planar import PlanarRobot, planar_inertial_wrench
 from jaxbal._src.robot import Robot
@@ -286,4 +286,4 @@ def _physics(robot: Robot, q, qd, qdd, gravity):
 _straight_physics = straight_line(_physics)
 #: the wrench and the loop excess of a closed chain's state as one program
 #: (:mod:`jaxbal._src.loop_checks`: they share their sines and cosines)
-_straight_physics_loops = straight_line(with_loop_excess(_physics))
+_straight_physics_loops = straight_line(with_closure_excess(_physics))

@@ -47,6 +47,12 @@ def loop_excess(robot: Robot, q, qd, qdd, tol: float = LOOP_TOLERANCE) -> Scalar
     return jnp.maximum(jnp.maximum(parts[0], parts[1]), parts[2]) / tol
 
 
+def has_loops(robot: Robot) -> bool:
+    """Static: does the robot have loop closures (a constraint vector of length > 0)?"""
+    q = jax.ShapeDtypeStruct((robot.dof,), jnp.float64)
+    return jax.eval_shape(robot.constraint, q).shape[0] > 0
+
+
 def state_valid(robot: Robot, q, qd, qdd, tol: float = LOOP_TOLERANCE) -> Array:
     """Boolean: the state is finite and satisfies the loop closures to ``tol``
     (always True for a serial robot with a finite state). Works under jit/vmap."""
@@ -54,7 +60,7 @@ def state_valid(robot: Robot, q, qd, qdd, tol: float = LOOP_TOLERANCE) -> Array:
     for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
         check_shape(name, value, (robot.dof,))
     finite = jnp.all(jnp.isfinite(q)) & jnp.all(jnp.isfinite(qd)) & jnp.all(jnp.isfinite(qdd))
-    if jax.eval_shape(robot.constraint, q).shape[0] == 0:
+    if not has_loops(robot):
         return finite
     return finite & (loop_excess(robot, q, qd, qdd, tol) <= 1.0)
 

@@ -9,7 +9,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.loop_checks import MESSAGE as LOOP_MESSAGE
-from jaxbal._src.loop_checks import check_loops_eagerly, closure_excess, has_loops
+from jaxbal._src.loop_checks import check_loops_eagerly, closure_excess
+from jaxbal._src.motion import has_loops
 from jaxbal._src.robot import Robot
 from jaxbal._src.validation import (
     _under_trace,

@@ -19,7 +19,7 @@ import jax
 import numpy as np
 
 from jaxbal._src.metrics import as_motion
-from jaxbal._src.motion import states_valid
+from jaxbal._src.motion import has_loops, states_valid
 from jaxbal._src.sweep_program import apply_parameters
 from jaxbal._src.validation import runtime_checks
 
@@ -41,7 +41,7 @@ def check_loops(axes: dict, robot, motion, plan: tuple) -> None:
     if callable(motion) or not any(how == "set" for _, how, _ in plan):
         return
     motion = as_motion(motion)
-    if jax.eval_shape(robot.constraint, motion.q[0]).shape[0] == 0:
+    if not has_loops(robot):
         return
     first = {n: v[0] for axis in axes.values() for n, v in axis.values.items()}
     for dim, axis in axes.items():
