@@ -119,7 +119,7 @@ def balance(
     ignore_meshes: bool = typer.Option(
         False, "--ignore-meshes", help="leave mesh geoms out (mesh files not at hand)"
     ),
-    samples: int = typer.Option(101, "--samples", help="instants sampled on [0, T]"),
+    samples: int = typer.Option(101, "--samples", min=2, help="instants sampled on [0, T]"),
     counter_bodies: str = typer.Option(
         None, "--counter-bodies", help="bodies given a counter-mass (default: all moving bodies)"
     ),

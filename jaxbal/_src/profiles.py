@@ -48,20 +48,41 @@ def _cube_difference(u, start, end):
     return jnp.where(b >= 0, both_on, ramping)
 
 
+def held(u):
+    """``u`` inside ``[0, 1]``; outside it the constant end (0 or 1), so that a move
+    evaluated before its start or after its duration rests at its start or end pose
+    (``s`` = 0 or 1, its derivatives 0: every built-in profile starts and ends at
+    rest) instead of extrapolating its polynomial (sampling a 0.5 s move on ``[0, 1]``
+    s gave 50× its peak force). Written with ``where``, not ``clip``: at ``u = 0`` and
+    ``1`` the derivatives are the move's (``clip`` halves them there)."""
+    return jnp.where(u > 1.0, 1.0, jnp.where(u < 0.0, 0.0, u))
+
+
+def normalised_time(t, duration, what: str):
+    """``u = t / T`` of a move of ``duration`` ``T`` [s], guarded by ``T`` finite and
+    ``> 0`` where it is used, so that a duration changed by ``eqx.tree_at`` or an
+    optimiser is checked too (eagerly a ``ValueError`` naming ``T``, under ``jit`` a
+    runtime error; ``T = 0`` gave ``u = ±inf``, the end pose held at every time)."""
+    duration = guard(
+        duration,
+        ~(jnp.isfinite(duration) & (duration > 0)),
+        f"{what} duration must be finite and > 0 [s]",
+        duration,
+    )
+    return jnp.asarray(t, dtype=float) / duration
+
+
 def _checked_time(profile, u, value):
     """``value = s(u)``, guarded by a finite ``u`` and a finite ``s(u)``: a NaN time gave a
-    silent NaN, and a time far outside [0, 1] (u = 1e300) overflowed to inf. Eagerly a
-    ``ValueError`` naming ``u``; under ``jit`` a runtime error."""
+    silent NaN. Eagerly a ``ValueError`` naming ``u``; under ``jit`` a runtime error."""
     invalid = ~(jnp.isfinite(u) & jnp.isfinite(value))
-    message = (
-        f"{type(profile).__name__} profile: u must be finite and s(u) finite "
-        "(normalised time u = t/T, far outside [0, 1] the polynomial overflows)"
-    )
+    message = f"{type(profile).__name__} profile: the normalised time u = t/T must be finite"
     return guard(value, invalid, message, u)
 
 
 class Profile(eqx.Module):
-    """Base class: ``profile(u)`` returns ``s(u)``, dimensionless."""
+    """Base class: ``profile(u)`` returns ``s(u)``, dimensionless. The built-in profiles
+    rest outside ``[0, 1]`` (:func:`held`); a profile of your own should too."""
 
     def __call__(self, u: ScalarLike) -> Scalar:
         raise NotImplementedError
@@ -73,7 +94,8 @@ class Quintic(Profile):
 
     def __call__(self, u):
         u = jnp.asarray(u, dtype=float)
-        return _checked_time(self, u, u**3 * (10.0 - 15.0 * u + 6.0 * u**2))
+        v = held(u)
+        return _checked_time(self, u, v**3 * (10.0 - 15.0 * v + 6.0 * v**2))
 
 
 class BangBang(Profile):
@@ -84,7 +106,8 @@ class BangBang(Profile):
 
     def __call__(self, u):
         u = jnp.asarray(u, dtype=float)
-        return _checked_time(self, u, 4.0 * (_ramp_power(u, 2) - 2.0 * _ramp_power(u - 0.5, 2)))
+        v = held(u)
+        return _checked_time(self, u, 4.0 * (_ramp_power(v, 2) - 2.0 * _ramp_power(v - 0.5, 2)))
 
 
 class TrapezoidalAcceleration(Profile):
@@ -124,7 +147,7 @@ class TrapezoidalAcceleration(Profile):
 
     def __call__(self, u):
         u = jnp.asarray(u, dtype=float)
-        value = self._checked(self._shape(u) / self._shape(jnp.asarray(1.0)))
+        value = self._checked(self._shape(held(u)) / self._shape(jnp.asarray(1.0)))
         return _checked_time(self, u, value)
 
     def jerk_phases(self) -> tuple[Float[Array, "3"], Float[Array, "3"]]:
@@ -169,10 +192,11 @@ class BoundaryPolynomial(Profile):
 
     def __call__(self, u):
         u = jnp.asarray(u, dtype=float)
+        v = held(u)
         # Horner's scheme: no u**0 whose derivative at u = 0 would be 0·∞ = NaN.
-        bump = (u * (1.0 - u)) ** 3 * jnp.polyval(self.coefficients[::-1], u)
+        bump = (v * (1.0 - v)) ** 3 * jnp.polyval(self.coefficients[::-1], v)
         value = guard(
-            Quintic()(u) + bump,
+            Quintic()(v) + bump,
             ~jnp.all(jnp.isfinite(self.coefficients)),
             "BoundaryPolynomial coefficients must be finite",
             self.coefficients,

@@ -85,6 +85,10 @@ RANK_RTOL = 1e-9
 #: coefficients of the row-echelon conditions below this fraction of the largest are
 #: rounding (the SVD's ~1e-16, amplified by the elimination) and set to zero.
 CLEAN_RTOL = 1e-10
+#: a regressor column below this fraction of the largest is rounding (a parameter the
+#: wrench does not depend on, e.g. ``h_z`` of a link turning about z, gives ~1e-16):
+#: zeroed before the equilibration, which would scale it up to a spurious condition.
+ZERO_COLUMN_RTOL = 1e-12
 
 
 def _of_bodies(bodies: Bodies) -> Array:
@@ -370,6 +374,8 @@ def balancing_conditions(
     )
     stacked = np.concatenate([np.asarray(y).reshape(-1, y.shape[-1]) for y in chosen])
     norms = np.linalg.norm(stacked, axis=0)
+    rounding = norms <= ZERO_COLUMN_RTOL * np.max(norms, initial=0.0)
+    stacked, norms = np.where(rounding, 0.0, stacked), np.where(rounding, 0.0, norms)
     scale = np.where(norms > 0.0, norms, 1.0)
     _, singular, vt = np.linalg.svd(stacked / scale, full_matrices=False)
     rank = int(np.sum(singular > rtol * singular[0])) if singular[0] > 0 else 0

@@ -23,6 +23,41 @@ from jaxbal._src.validation import (
     runtime_checks_enabled,
 )
 
+#: Relative tolerance of the inertia tensor's symmetry and of its principal minors.
+INERTIA_RTOL = 1e-9
+
+
+def _unphysical(inertia, triangle: bool):
+    """Mask ``(b,)``: an inertia tensor ``(b, 3, 3)`` that is not symmetric or not
+    positive semi-definite, or with ``triangle`` whose principal moments break the
+    triangle inequality ``I₁ ≤ I₂ + I₃`` (no mass distribution has it; MuJoCo refuses
+    it when compiling). Tested on the seven principal minors of ``I`` (or of
+    ``tr(I)/2·1 − I``, PSD exactly when the triangle inequality holds), each to
+    :data:`INERTIA_RTOL` of its scale: no eigendecomposition in the traced checks."""
+    scale = jnp.max(jnp.abs(inertia), axis=(-2, -1)) + ROUNDING
+    asymmetric = jnp.max(jnp.abs(inertia - jnp.swapaxes(inertia, -1, -2)), axis=(-2, -1))
+    m = 0.5 * (inertia + jnp.swapaxes(inertia, -1, -2))
+    if triangle:
+        m = 0.5 * jnp.trace(m, axis1=-2, axis2=-1)[..., None, None] * jnp.eye(3) - m
+    tol = INERTIA_RTOL * scale
+    first = jnp.diagonal(m, axis1=-2, axis2=-1)
+    pairs = ((0, 1), (0, 2), (1, 2))
+    second = jnp.stack([m[..., i, i] * m[..., j, j] - m[..., i, j] ** 2 for i, j in pairs], -1)
+    third = jnp.linalg.det(m)
+    return (
+        (asymmetric > tol)
+        | jnp.any(first < -tol[..., None], -1)
+        | jnp.any(second < -(tol * scale)[..., None], -1)
+        | (third < -tol * scale**2)
+    )
+
+
+def _triangle(robot: Robot) -> bool:
+    """Are the robot's inertias those of real bodies (the class sets
+    ``physical_inertias``, e.g. an MJCF robot), so the triangle inequality applies? A
+    planar model's ``diag(0, 0, I_zz)`` is not one."""
+    return getattr(type(robot), "physical_inertias", False)
+
 
 def _body_faults(robot: Robot):
     """``(bodies, inertia diagonals, bad mass (b,), bad inertia (b,))`` (masks)."""
@@ -30,8 +65,10 @@ def _body_faults(robot: Robot):
     diagonal = jnp.diagonal(bodies.inertia, axis1=-2, axis2=-1)
     bad_mass = ~(jnp.isfinite(bodies.mass) & (bodies.mass >= -ROUNDING))
     finite = jnp.all(jnp.isfinite(bodies.inertia), axis=(-2, -1))
-    signed = getattr(type(robot), "signed_inertias", False)
-    bad_inertia = ~finite if signed else ~finite | jnp.any(diagonal < -ROUNDING, -1)
+    if getattr(type(robot), "signed_inertias", False):
+        return bodies, diagonal, bad_mass, ~finite
+    inertia = jnp.where(finite[..., None, None], bodies.inertia, 0.0)
+    bad_inertia = ~finite | _unphysical(inertia, _triangle(robot))
     return bodies, diagonal, bad_mass, bad_inertia
 
 
@@ -79,8 +116,12 @@ def checked_bodies(robot: Robot, value):
     bodies, diagonal, bad_mass, bad_inertia = _body_faults(robot)
     message = "body masses must be finite and >= 0 [kg]"
     value = guard(value, bad_mass, message, bodies.mass, bodies.names)
-    message = "body inertias must be finite with diagonal >= 0 [kg m^2]"
-    return guard(value, bad_inertia, message, diagonal, bodies.names)
+    message = (
+        "body inertias must be finite, symmetric and positive semi-definite"
+        + (", principal moments obeying the triangle inequality" if _triangle(robot) else "")
+        + " [kg m^2]"
+    )
+    return guard(value, bad_inertia, message, bodies.inertia, bodies.names)
 
 
 def _parameters(robot: Robot) -> list[tuple[str, Array]]:

@@ -14,9 +14,10 @@ from collections.abc import Callable
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxbal._src.callables import as_pytree
-from jaxbal._src.profiles import Profile
+from jaxbal._src.profiles import Profile, normalised_time
 from jaxbal._src.types import Array, Float, ScalarLike
 from jaxbal._src.validation import checked_call, guard
 
@@ -61,8 +62,15 @@ def _sampled(path: Callable, times, order: int) -> tuple:
 
 
 def sample_times(duration: ScalarLike, count: int = 1001) -> Float[Array, " t"]:
-    """``count`` equally spaced instants on ``[0, duration]`` [s], both ends included."""
-    return jnp.linspace(0.0, 1.0, count) * jnp.asarray(duration, dtype=float)
+    """``count ≥ 2`` equally spaced instants on ``[0, duration]`` [s], both ends
+    included; ``duration`` finite and ``> 0`` (eagerly a ``ValueError``, under ``jit`` a
+    runtime error: ``sample_times(0.0)`` gave instants all zero, a peak force of 0 N)."""
+    if isinstance(count, bool) or not isinstance(count, int | np.integer) or count < 2:
+        raise ValueError(f"count must be an integer >= 2 (both ends of the move), got {count!r}")
+    duration = jnp.asarray(duration, dtype=float)
+    message = "sample_times: duration must be finite and > 0 [s]"
+    duration = guard(duration, ~(jnp.isfinite(duration) & (duration > 0)), message, duration)
+    return jnp.linspace(0.0, 1.0, count) * duration
 
 
 class StraightLine(eqx.Module):
@@ -91,13 +99,5 @@ class StraightLine(eqx.Module):
             raise ValueError(f"start {self.start.shape} and end {self.end.shape} differ in shape")
 
     def __call__(self, t: ScalarLike) -> Float[Array, " k"]:
-        # Checked where it is used, so a duration changed by eqx.tree_at or an optimiser
-        # is checked too (eagerly a ValueError; under jit a runtime error).
-        duration = guard(
-            self.duration,
-            ~(jnp.isfinite(self.duration) & (self.duration > 0)),
-            "StraightLine duration must be finite and > 0 [s]",
-            self.duration,
-        )
-        u = jnp.asarray(t, dtype=float) / duration
+        u = normalised_time(t, self.duration, "StraightLine")
         return self.start + self.profile(u) * (self.end - self.start)

@@ -81,6 +81,7 @@ class MjcfRobot(Robot):
     """
 
     branch_size = 0
+    physical_inertias = True  # robot_checks: principal moments obey the triangle inequality
     #: payload (when ``payload_body`` is set) is handled in :meth:`with_design`.
     design_fields = {"counter_mass": "counter_mass", "counter_position": "counter_position"}
 

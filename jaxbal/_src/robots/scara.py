@@ -55,7 +55,7 @@ import numpy as np
 
 from jaxbal._src.linalg import two_link_ik, unit
 from jaxbal._src.mujoco.tree import Joint, Tree, TreeBody, Z
-from jaxbal._src.profiles import Profile, Quintic
+from jaxbal._src.profiles import Profile, Quintic, held, normalised_time
 from jaxbal._src.robot import Bodies, Robot, concatenate, planar_inertia, point_masses, rot_z
 from jaxbal._src.types import Array, Float, ScalarLike
 from jaxbal._src.validation import (
@@ -320,9 +320,9 @@ class PickAndPlace(eqx.Module):
         self.lift = jnp.asarray(lift, dtype=float)
 
     def __call__(self, t: ScalarLike) -> Float[Array, "4"]:
-        u = jnp.asarray(t, dtype=float) / self.duration
+        u = normalised_time(t, self.duration, "PickAndPlace")
         horizontal = self.start + self.profile(u) * (self.end - self.start)
-        height = self.lift * 64.0 * (u * (1.0 - u)) ** 3
+        height = self.lift * 64.0 * (held(u) * (1.0 - held(u))) ** 3
         return jnp.concatenate([horizontal, height[None]])
 
 

@@ -1,0 +1,161 @@
+"""Inputs a user's own mechanism or move can carry, found by an exploratory session: an
+inertia no body has, time samples outside the move or of a zero duration, and a
+regressor column that is rounding. Each gave a finite, wrong number without a message.
+
+References: the triangle inequality of principal moments (any mass distribution;
+MuJoCo refuses a violating ``<inertial>``); Briot et al. (2012), eqs (2)-(3) (a move
+``x0 + s(t/T)(x1 − x0)`` on ``[0, T]``).
+"""
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+import jaxbal
+from jaxbal.balancing import balancing_conditions, linear_wrench
+from jaxbal.design import Motion, motion_samples, peak_force
+from jaxbal.profiles import BangBang, BoundaryPolynomial, Quintic, TrapezoidalAcceleration
+from jaxbal.robots import PickAndPlace
+
+# a spatial two-link arm, its frames rotated by quaternions (their rounding gives the
+# regressor column of ``link.h_z``, along the first hinge, a norm of ~1e-14, not 0)
+ARM = """<mujoco><worldbody><body name="base" pos="0.1 -0.05 0.2" quat="0.9659 0 0 0.2588">
+<body name="link" pos="0 0 0.15" quat="0.9239 0.3827 0 0"><joint name="j" axis="0 0 1"/>
+<inertial pos="0.02 0.03 0.1" mass="2.5" diaginertia="0.03 0.025 0.01"/>
+<body name="link2" pos="0.05 0.02 0.2" quat="0.8 0.0 0.6 0.0">
+<joint name="j2" axis="0 1 0" pos="0 0 0.01"/><site name="tip" pos="0.3 0 0"/>
+<inertial pos="0.15 0.01 -0.02" mass="1.7" diaginertia="0.005 0.02 0.021"/>
+</body></body></body></worldbody></mujoco>"""
+
+STATE = (jnp.array([0.3, 0.5]), jnp.array([1.0, 2.0]), jnp.array([0.5, -1.0]))
+
+UNPHYSICAL = {
+    "not positive semi-definite": [[0.01, 0.02, 0], [0.02, 0.01, 0], [0, 0, 0.01]],
+    "not symmetric": [[0.01, 0.005, 0], [-0.005, 0.01, 0], [0, 0, 0.01]],
+    "triangle inequality": [[0.001, 0, 0], [0, 0.001, 0], [0, 0, 0.01]],
+}
+
+
+@pytest.fixture(scope="module")
+def arm():
+    return jaxbal.robots.from_mjcf(ARM, end_effector_site="tip")
+
+
+@pytest.mark.parametrize("inertia", UNPHYSICAL.values(), ids=UNPHYSICAL.keys())
+def test_an_inertia_no_body_has_is_refused(arm, inertia):
+    """Each of these changed the shaking moment with no message (only a negative
+    diagonal was refused); now eagerly, under ``jit`` and set by ``eqx.tree_at`` inside
+    the program, as every other parameter check."""
+    bad = arm.with_body("link2", inertia=inertia)
+    with pytest.raises(ValueError, match=r"positive semi-definite.*triangle.*'link2'"):
+        jaxbal.shaking_wrench(bad, *STATE)
+    with pytest.raises(Exception, match="positive semi-definite"):
+        jax.block_until_ready(jax.jit(jaxbal.shaking_wrench)(bad, *STATE))
+    index = arm.body_index("link2")
+
+    @jax.jit
+    def moment(inertia):
+        robot = eqx.tree_at(lambda r: r.inertia, arm, arm.inertia.at[index].set(inertia))
+        return jaxbal.shaking_wrench(robot, *STATE)[1]
+
+    with pytest.raises(Exception, match="positive semi-definite"):
+        jax.block_until_ready(moment(jnp.asarray(inertia)))
+    assert np.all(np.isfinite(moment(arm.inertia[index])))
+
+
+def test_physical_inertias_pass_and_planar_ones_too(arm):
+    """A rod (one zero principal moment, the triangle inequality an equality), a
+    rotated full tensor and a point mass pass; the planar built-in robots give only
+    ``I_zz`` (no triangle inequality asked of them) and pass."""
+    rotation = np.linalg.qr(np.random.default_rng(0).normal(size=(3, 3)))[0]
+    for inertia in (np.diag([0.0, 0.02, 0.02]), rotation @ np.diag([1, 2, 2.5]) @ rotation.T, 0):
+        robot = arm.with_body("link2", inertia=np.broadcast_to(inertia, (3, 3)))
+        assert np.all(np.isfinite(jaxbal.shaking_wrench(robot, *STATE)[1]))
+    planar = jaxbal.robots.planar_2r()
+    force, _ = jaxbal.shaking_wrench(planar, jnp.array([0.3, 0.5]), jnp.ones(2), jnp.zeros(2))
+    assert np.all(np.isfinite(force))
+
+
+def test_sample_times_refuse_a_duration_or_count_that_is_no_move():
+    """``sample_times(0.0)`` gave instants all zero, so a peak force of 0 N."""
+    for duration in (0.0, -1.0, np.nan):
+        with pytest.raises(ValueError, match="duration must be finite and > 0"):
+            jaxbal.sample_times(duration)
+    for count in (0, 1, 2.0, True):
+        with pytest.raises(ValueError, match="count must be an integer >= 2"):
+            jaxbal.sample_times(1.0, count)
+    with pytest.raises(Exception, match="duration must be finite and > 0"):
+        jax.block_until_ready(jax.jit(jaxbal.sample_times)(jnp.asarray(0.0)))
+    np.testing.assert_allclose(jaxbal.sample_times(0.5, 3), [0.0, 0.25, 0.5], rtol=0, atol=0)
+
+
+@pytest.mark.parametrize(
+    "profile",
+    [Quintic(), BangBang(), TrapezoidalAcceleration(0.1, 0.3), BoundaryPolynomial([0.3, -0.2])],
+    ids=["quintic", "bangbang", "trapezoid", "poly8"],
+)
+def test_a_move_rests_outside_its_duration(profile):
+    """Past ``u = 1`` (before 0) every profile is its end (start) at rest, its
+    derivatives zero, where the polynomial extrapolated (the bang-bang went back); at
+    ``u = 0`` and ``1`` the derivatives are the move's (right- and left-hand), as
+    before: ``where``, not ``clip``, which halves them at the ends."""
+    inside = [jaxbal.time_derivatives(profile, u, 3) for u in (0.0, 1.0)]
+    for u, end in ((-0.5, 0.0), (1.5, 1.0), (1e300, 1.0), (-1e300, 0.0)):
+        values = np.array(jaxbal.time_derivatives(profile, u, 3))
+        np.testing.assert_array_equal(values, [end, 0.0, 0.0, 0.0])
+    a = np.array(jaxbal.time_derivatives(BangBang(), 1.0, 2))
+    np.testing.assert_allclose(a, [1.0, 0.0, -4.0], atol=1e-12)  # left-hand, as before
+    assert all(np.all(np.isfinite(x)) for x in inside)
+    grads = jax.grad(lambda c: profile(jnp.asarray(1.5)) + profile(jnp.asarray(-0.5)))(0.0)
+    assert np.isfinite(grads)
+
+
+def test_sampling_past_the_duration_adds_rest_not_force():
+    """A 0.5 s move sampled on [0, 1] s gave 50× its peak force (the quintic
+    extrapolated); now its samples on [0, 0.5] s are the move's, those after it the end
+    pose at rest, and the peak force is the move's."""
+    arm = jaxbal.robots.planar_2r()
+    start, end = jnp.array([0.225, 0.25]), jnp.array([0.225, 0.70])  # P5, P9 of Fig 3
+    line = jaxbal.StraightLine(start, end, Quintic(), 0.5)
+    move = jaxbal.planning.EndEffectorLine(arm, line, branch=-1)
+    short = motion_samples(arm, [move], jaxbal.sample_times(0.5, 51))
+    long = motion_samples(arm, [move], jaxbal.sample_times(1.0, 101))
+    np.testing.assert_allclose(long.q[:51], short.q, atol=1e-12)
+    np.testing.assert_allclose(long.qd[:51], short.qd, atol=1e-10)
+    np.testing.assert_allclose(long.q[51:], np.broadcast_to(short.q[-1], (50, 2)), atol=1e-12)
+    np.testing.assert_array_equal(long.qd[51:], 0.0)
+    np.testing.assert_array_equal(long.qdd[51:], 0.0)
+    np.testing.assert_allclose(peak_force(arm, long), peak_force(arm, short), rtol=1e-10)
+
+
+def test_pick_and_place_duration_is_checked():
+    """The SCARA's move divided by its duration unchecked: ``T = 0`` gave ``u = inf``,
+    the end pose held at every instant."""
+    line = PickAndPlace(jnp.array([0.15, 0.2, 1.4]), jnp.array([-0.15, 0.2, 2.7]), 0.0)
+    with pytest.raises(ValueError, match="PickAndPlace duration must be finite and > 0"):
+        line(0.1)
+
+
+def test_a_rounding_column_gives_no_condition(arm):
+    """The regressor column of ``link.h_z`` is rounding (the force does not depend on
+    the first moment along the first hinge); the column equilibration scaled it to unit
+    norm, which reported one condition more than the rank and printed an empty
+    equation ``' = 0'``."""
+    t = jnp.linspace(0.0, 1.0, 200)[:, None]
+    w, phase = 2 * jnp.pi * jnp.array([1.3, 2.1]), jnp.array([0.1, 0.5])
+    motion = Motion(
+        0.5 * jnp.sin(w * t + phase),
+        0.5 * w * jnp.cos(w * t + phase),
+        -0.5 * w**2 * jnp.sin(w * t + phase),
+    )
+    stacked = np.asarray(linear_wrench(arm, motion).force).reshape(-1, 20)
+    norms = np.linalg.norm(stacked, axis=0)
+    column = 3  # link.h_z
+    assert 0 < norms[column] < 1e-12 * norms.max()  # the case: rounding, not zero
+    conditions = balancing_conditions(arm, motion)
+    rank = np.linalg.matrix_rank(stacked, tol=1e-9 * np.linalg.norm(stacked, 2))
+    assert conditions.rank == rank == 4
+    assert all(e.split("=")[0].strip() for e in conditions.equations())
+    assert np.all(conditions.matrix[:, column] == 0.0)
