@@ -159,3 +159,51 @@ def test_a_rounding_column_gives_no_condition(arm):
     assert conditions.rank == rank == 4
     assert all(e.split("=")[0].strip() for e in conditions.equations())
     assert np.all(conditions.matrix[:, column] == 0.0)
+
+
+def _five_bar(passive_range: str):
+    """The five-bar of ``test_mjcf_robot`` with a range on its passive joint ``pa``."""
+    from test_mjcf_robot import FIVE_BAR
+
+    xml = FIVE_BAR.replace('ref="-1.549961"/>', f'ref="-1.549961" {passive_range}/>')
+    return jaxbal.robots.from_mjcf(xml, end_effector_site="tip")
+
+
+def test_a_solution_outside_a_joint_range_is_refused():
+    """A pose whose solution puts a limited joint outside its range (MJCF ``range``, a
+    URDF ``<limit>``) came back valid (a slide 26 times past its limit); now the IK
+    and the loop closure refuse it, naming the joint, eagerly and under ``jit``, and
+    ``return_valid`` gives False. Inside the range the solution is the unlimited one."""
+    free = _five_bar("")
+    start = jnp.array([-0.05, 0.33])
+    q = free.inverse_kinematics(start)
+    pa = float(q[free.coordinate("pa")])
+    inside = _five_bar(f'range="{pa - 0.1} {pa + 0.1}"')
+    np.testing.assert_allclose(inside.inverse_kinematics(start), q, atol=1e-12)
+    outside = _five_bar(f'range="{pa + 0.05} {pa + 0.2}"')
+    assert outside.joint_range[free.joint_names.index("pa")] == (pa + 0.05, pa + 0.2)
+    with pytest.raises(ValueError, match=r"range of a limited joint.*pa \[.*\{'pa': "):
+        outside.inverse_kinematics(start)
+    q_out, valid = outside.inverse_kinematics(start, return_valid=True)
+    assert not bool(valid) and np.all(np.isfinite(q_out))
+    with pytest.raises(Exception, match="range of a limited joint"):
+        jax.block_until_ready(jax.jit(lambda p: outside.inverse_kinematics(p))(start))
+    u = q[np.asarray(free.independent)]
+    with pytest.raises(ValueError, match="loop closure: the solution leaves the range"):
+        outside.closure(u, guess=q)
+    assert not bool(outside.closure(u, guess=q, return_valid=True)[1])
+    np.testing.assert_allclose(inside.closure(u, guess=q), q, atol=1e-12)
+
+
+def test_a_limited_hinge_is_turned_into_its_range():
+    """From a singular start (the URDF arm drawn straight) Newton wanders whole turns
+    away: the shoulder, limited to ±3 rad, came back at −5.54 rad. A limited hinge is
+    turned by 2π into its range (the same pose), so the pose is reached and valid."""
+    from test_mjcf_spec import NO_MESHES
+
+    arm = jaxbal.robots.from_urdf(NO_MESHES, end_effector_body="tool")
+    assert arm.joint_range[0] == (-3.0, 3.0) and arm.joint_range[1] == (-np.inf, np.inf)
+    pose = jnp.array([0.45, 0.1])
+    q, valid = arm.inverse_kinematics(pose, return_valid=True)
+    assert bool(valid) and -3.0 <= float(q[0]) <= 3.0
+    np.testing.assert_allclose(arm.end_effector(q), pose, atol=1e-12)

@@ -216,6 +216,7 @@ def from_mjcf(
         joint_names=parsed.joint_names,
         joint_types=parsed.joint_types,
         joint_qpos=parsed.joint_qpos,
+        joint_range=parsed.joint_range,
         connect_names=parsed.connect_names,
         connect_bodies=parsed.connect_bodies,
         closure_rows=parsed.closure_rows,

@@ -63,6 +63,7 @@ class Parsed(NamedTuple):
     joint_types: tuple[str, ...]
     joint_body: tuple[int, ...]
     joint_qpos: tuple[int, ...]
+    joint_range: tuple[tuple[float, float], ...]  # limited joints, else (-inf, inf)
     joint_axis: np.ndarray  # (nj, 3) unit, body frame
     joint_pos: np.ndarray  # (nj, 3) anchor, body frame [m]
     qpos0: np.ndarray  # (nq,) reference configuration (``ref``)
@@ -319,6 +320,10 @@ def parse(model, ignore_armature: bool = False) -> Parsed:
         joint_types=tuple(JOINT_TYPES[int(t)] for t in model.jnt_type),
         joint_body=tuple(body_index(b) for b in model.jnt_bodyid),
         joint_qpos=tuple(int(a) for a in model.jnt_qposadr),
+        joint_range=tuple(
+            (float(r[0]), float(r[1])) if limited else (-np.inf, np.inf)
+            for limited, r in zip(model.jnt_limited, model.jnt_range, strict=True)
+        ),
         joint_axis=np.array(model.jnt_axis, dtype=float).reshape(-1, 3),
         joint_pos=np.array(model.jnt_pos, dtype=float).reshape(-1, 3),
         qpos0=np.array(model.qpos0, dtype=float),

@@ -21,7 +21,8 @@ The end-effector pose is the position of a named site (the components
 the joints ``ik_free`` when the mechanism has more independent coordinates than pose
 components (as the 3R's φ). The inverse kinematics is numerical (Newton from the
 robot's :attr:`~MjcfRobot.reference` configuration or a ``guess``, which picks the
-assembly mode): there are no sign branches (``branch_size = 0``).
+assembly mode; no sign branches); a solution, or a closed chain's passive joint,
+outside a limited joint's ``range`` (``joint_range``) is refused as unreachable.
 
 Every body's mass, COM (body frame) and inertia (about the COM, body frame) is a leaf
 addressable by its MJCF name (:meth:`MjcfRobot.body_index`, :meth:`MjcfRobot.with_body`);
@@ -30,9 +31,8 @@ so are the geometry (body offsets, joint axes and anchors) and the counter-masse
 their path to the world are part of the base and left out.
 
 References:
-    MuJoCo XML reference, https://mujoco.readthedocs.io/en/stable/XMLreference.html
-    (``joint``, ``equality/connect``, ``site``); Blondel et al. (2022), implicit
-    differentiation (:func:`jaxbal.newton_solve`).
+    MuJoCo XML reference (``joint``, ``equality/connect``, ``site``); Blondel et al.
+    (2022), implicit differentiation (:func:`jaxbal.newton_solve`).
 """
 
 from __future__ import annotations
@@ -72,12 +72,12 @@ class MjcfRobot(Robot):
         counter_mass, counter_position, counter_inertia: ``(k,)`` [kg], ``(k, 3)`` in
             the carrying body's frame [m], ``(k, 3, 3)`` about their COM [kg·m²].
 
-    Static structure: names, parents, joint types and ``qpos`` addresses, which bodies
-    move, the loop-closure rows, the site, the pose components, the independent,
-    actuated and IK-free coordinates, the counter-masses' bodies, the payload body and
-    the Newton ``tolerance`` (on ``|Φ|∞`` and the pose error, default ``1e-13`` m: some
-    hundred times the round-off of a model of up to ~100 m; ``dataclasses.replace``
-    changes it).
+    Static structure: names, parents, joint types, ``qpos`` addresses and ranges
+    (``(lo, hi)``, ``±inf`` unlimited; a ball's is its angle), which bodies move, the
+    loop-closure rows, the site, the pose components, the independent, actuated and
+    IK-free coordinates, the counter-masses' bodies, the payload body and the Newton
+    ``tolerance`` (on ``|Φ|∞`` and the pose error, default ``1e-13`` m: some hundred
+    times the round-off of a model of up to ~100 m; ``dataclasses.replace`` changes it).
     """
 
     branch_size = 0
@@ -122,6 +122,7 @@ class MjcfRobot(Robot):
     counter_bodies: tuple[int, ...] = eqx.field(static=True)
     counter_names: tuple[str, ...] = eqx.field(static=True)
     payload_body: int | None = eqx.field(static=True)
+    joint_range: tuple[tuple[float, float], ...] = eqx.field(static=True, default=())
     tolerance: float = eqx.field(static=True, default=1e-13)
 
     def __check_init__(self):
@@ -149,8 +150,6 @@ class MjcfRobot(Robot):
         check_shape("MjcfRobot.reference", self.reference, (None,))
         if len(set(names := self.mass_names())) != len(names):
             raise ValueError(f"body and counter-mass names must be unique, got {names}")
-
-    # --- structure ------------------------------------------------------------------
 
     @property
     def dof(self) -> int:

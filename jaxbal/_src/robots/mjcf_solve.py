@@ -52,6 +52,77 @@ def _check_square(robot, unknowns: int, equations: int, what: str) -> None:
         )
 
 
+#: a joint value within this of its range's end [rad, m] is in range (Newton's rounding
+#: of a pose asked for at the limit itself).
+RANGE_ATOL = 1e-9
+
+
+def joint_values(robot, q):
+    """``(nj,)`` each joint's value as its range bounds it: a hinge's angle [rad], a
+    slide's displacement [m], a ball's rotation angle ``2 atan2(|v|, |w|)`` [rad]."""
+    values = []
+    for kind, a in zip(robot.joint_types, robot.joint_qpos, strict=True):
+        if kind == "ball":
+            quat = q[a : a + 4]
+            values.append(2.0 * jnp.arctan2(jnp.linalg.norm(quat[1:]), jnp.abs(quat[0])))
+        else:
+            values.append(q[a])
+    return jnp.stack(values) if values else jnp.zeros(0)
+
+
+def out_of_range(robot, q):
+    """``(nj,)`` mask: a limited joint (MJCF ``range``, a URDF ``<limit>``) outside its
+    range at ``q``; all False for a robot without ranges."""
+    if not robot.joint_range:
+        return jnp.zeros(len(robot.joint_types), dtype=bool)
+    low, high = np.asarray(robot.joint_range, dtype=float).T
+    values = joint_values(robot, q)
+    return (values < low - RANGE_ATOL) | (values > high + RANGE_ATOL)
+
+
+def into_range(robot, q):
+    """``q`` with each limited hinge outside its range turned by a multiple of 2π into
+    it where one fits (the same configuration: Newton from a singular start wanders
+    whole turns away, a URDF shoulder limited to ±3 rad came back at −5.54); other
+    coordinates unchanged."""
+    ranges = robot.joint_range  # () for a robot built without ranges: nothing to turn
+    for kind, a, (lo, hi) in zip(robot.joint_types, robot.joint_qpos, ranges, strict=False):
+        if kind == "hinge" and np.isfinite(lo):
+            value = q[a]
+            inside = (value >= lo - RANGE_ATOL) & (value <= hi + RANGE_ATOL)
+            q = q.at[a].set(jnp.where(inside, value, lo + jnp.mod(value - lo, 2.0 * np.pi)))
+    return q
+
+
+def _checked(robot, q, converged, offending, message: str, what: str):
+    """``q``, guarded by Newton's convergence (``message``, naming ``offending``), then
+    by every limited joint in its range (eagerly a ``ValueError`` naming the joints and
+    values, with the ranges; under ``jit`` a runtime error): Newton solves the
+    equations, not the ranges, so a pose reached only outside a joint's range came back
+    as valid (a slide 26 times past its limit)."""
+    q = guard(q, ~converged, message, offending)
+    if not robot.joint_range:
+        return q
+    limited = ", ".join(
+        f"{n} [{lo:.6g}, {hi:.6g}]"
+        for n, (lo, hi) in zip(robot.joint_names, robot.joint_range, strict=True)
+        if np.isfinite(lo) or np.isfinite(hi)
+    )
+    text = (
+        f"{what}: the solution leaves the range of a limited joint (ranges: {limited}; "
+        "a pose out of reach within them, or another assembly mode: try guess=)"
+    )
+    return guard(q, out_of_range(robot, q), text, joint_values(robot, q), robot.joint_names)
+
+
+def _valid(robot, q, converged):
+    """``return_valid``'s mask: converged, and every limited joint in its range."""
+    return converged & ~jnp.any(out_of_range(robot, q))
+
+
+_NOT_ASSEMBLED = "loop closure does not converge (not assemblable, or singular) for"
+
+
 def closure(robot, q_independent, guess=None, *, return_valid: bool = False):
     """All coordinates ``q (dof,)`` from the independent ones (loop closure).
 
@@ -63,21 +134,32 @@ def closure(robot, q_independent, guess=None, *, return_valid: bool = False):
         robot: an :class:`~jaxbal._src.robots.mjcf_robot.MjcfRobot`.
         q_independent: ``(m,)`` values of :attr:`independent` [rad or m].
         guess: ``(dof,)`` starting configuration.
-        return_valid: return ``(q, valid)`` and never raise.
+        return_valid: return ``(q, valid)`` (converged, every limited joint in its
+            range) and never raise.
 
     Raises:
         ValueError: at trace time, closure equations that do not match the
             dependent coordinates; eagerly, a closure that does not converge
-            (unassemblable input or a singular closure).
+            (unassemblable input or a singular closure) or leaves a limited joint's
+            range (the joints, values and ranges named).
     """
     q_independent = jnp.asarray(q_independent, dtype=float)
     check_shape("q_independent", q_independent, (len(robot.independent_coordinates),))
     _check_square(robot, len(robot.dependent), robot.closure_count(), "loop closure")
     start = robot.reference if guess is None else jnp.asarray(guess, dtype=float)
     check_shape("guess", start, (robot.dof,))
+    q, converged = _closure(robot, q_independent, start)
+    if return_valid:
+        return q, _valid(robot, q, converged)
+    message = f"{_NOT_ASSEMBLED} q_independent"
+    return _checked(robot, q, converged, q_independent, message, "loop closure")  # jit too
+
+
+def _closure(robot, q_independent, start):
+    """``(q, converged)`` of :func:`closure` from ``start`` (no range check)."""
     if not robot.dependent:
         q = robot.assemble(q_independent, jnp.zeros(0))
-        return (q, jnp.all(jnp.isfinite(q))) if return_valid else q
+        return q, jnp.all(jnp.isfinite(q))
     solution = newton_solve(
         _closure_residual,
         start[np.asarray(robot.dependent, dtype=int)],
@@ -86,12 +168,8 @@ def closure(robot, q_independent, guess=None, *, return_valid: bool = False):
         throw=False,
         what="loop closure",
     )
-    q = robot.assemble(q_independent, solution.value)
-    valid = solution.converged & jnp.all(jnp.isfinite(q_independent))
-    if return_valid:
-        return q, valid
-    message = "loop closure does not converge (not assemblable, or singular) for q_independent"
-    return guard(q, ~valid, message, q_independent)  # under jit too
+    q = into_range(robot, robot.assemble(q_independent, solution.value))
+    return q, solution.converged & jnp.all(jnp.isfinite(q_independent))
 
 
 def closure_motion(robot, u, u_d, u_dd, guess=None, *, return_valid: bool = False):
@@ -102,10 +180,10 @@ def closure_motion(robot, u, u_d, u_dd, guess=None, *, return_valid: bool = Fals
     (cheaper to compile than nested differentiation through Newton; exact).
     """
     u, u_d, u_dd = (jnp.asarray(v, dtype=float) for v in (u, u_d, u_dd))
-    q, valid = robot.closure(u, guess, return_valid=True)
-    if not return_valid:  # under jit too
-        message = "loop closure does not converge (not assemblable, or singular) for u"
-        q = guard(q, ~valid, message, u)
+    if return_valid:
+        q, valid = robot.closure(u, guess, return_valid=True)
+    else:  # under jit too: the message of what failed
+        q = robot.closure(u, guess)
     if not robot.dependent:
         q_d, q_dd = robot.assemble(u_d, jnp.zeros(0)), robot.assemble(u_dd, jnp.zeros(0))
         return (q, q_d, q_dd, valid) if return_valid else (q, q_d, q_dd)
@@ -138,10 +216,10 @@ def pose_motion(robot, pose, pose_d, pose_dd, guess=None, *, return_valid: bool 
     through Newton, but several times cheaper to compile).
     """
     pose_d, pose_dd = (jnp.asarray(v, dtype=float) for v in (pose_d, pose_dd))
-    q, valid = inverse_kinematics(robot, pose, guess, return_valid=True)
-    if not return_valid:  # under jit too
-        message = "end-effector pose not reached by Newton's method"
-        q = guard(q, ~valid, message, pose)
+    if return_valid:
+        q, valid = inverse_kinematics(robot, pose, guess, return_valid=True)
+    else:  # under jit too: the message of what failed
+        q = inverse_kinematics(robot, pose, guess)
     closures = robot.closure_count()
 
     def equations(x):
@@ -169,12 +247,14 @@ def inverse_kinematics(robot, pose, guess=None, *, return_valid: bool = False):
     Args:
         robot: an :class:`~jaxbal._src.robots.mjcf_robot.MjcfRobot` with a site.
         pose: ``(m,)`` as ``robot.end_effector`` returns it [m, then rad or m].
-        return_valid: return ``(q, valid)`` (converged, finite) and never raise.
+        return_valid: return ``(q, valid)`` (converged, finite, every limited joint in
+            its range) and never raise.
         guess: ``(dof,)`` starting configuration (picks the assembly mode).
 
     Raises:
         ValueError: eagerly, naming the pose, when Newton does not converge (out of
-            reach or singular); at trace time, a wrong shape or a count mismatch.
+            reach or singular), or naming the joints when the solution leaves a
+            limited joint's range; at trace time, a wrong shape or a count mismatch.
     """
     robot.require_site()
     pose = jnp.asarray(pose, dtype=float)
@@ -190,12 +270,12 @@ def inverse_kinematics(robot, pose, guess=None, *, return_valid: bool = False):
     solution = newton_solve(
         _ik_residual, start, (robot, pose), tol=robot.tolerance, throw=False, what="IK"
     )
-    valid = solution.converged & jnp.all(jnp.isfinite(pose))
-    q = jnp.where(jnp.isfinite(solution.value), solution.value, start)
+    converged = solution.converged & jnp.all(jnp.isfinite(pose))
+    q = into_range(robot, jnp.where(jnp.isfinite(solution.value), solution.value, start))
     if return_valid:
-        return q, valid
+        return q, _valid(robot, q, converged)
     message = (
         "end-effector pose not reached by Newton's method (out of reach, singular, "
         "or in another assembly mode: try guess=)"
     )
-    return guard(q, ~valid, message, pose)  # under jit too
+    return _checked(robot, q, converged, pose, message, "inverse kinematics")  # jit too
