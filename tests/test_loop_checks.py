@@ -197,3 +197,17 @@ def test_generalised_forces_and_checks_off_accept_any_state():
         wrench = eqx.filter_jit(lambda r, a, b, c: jaxbal.shaking_wrench(r, a, b, c))
         force, _ = wrench(changed, q, qd, motion.qdd[3])
     assert np.all(np.isfinite(force))
+
+
+def test_codesign_refuses_a_held_motion():
+    """``codesign`` of a DUAL-V whose motion was held while ``l1`` grew 1 % optimised
+    the counter-masses of that wrong mechanism (its callback-free compiled programs
+    have no loop check: RMS force 1.59 → 0.50 N, no message); now it is refused before
+    anything compiles, naming the samples. The consistent motion still co-designs."""
+    robot, motion = _robot_and_motion("dual_v")
+    changed = _lengthened("dual_v", robot, 1.01)
+    for metric in ("rms_force", "peak_torque"):
+        with pytest.raises(ValueError, match=rf"{LOOPS}.*at samples"):
+            jaxbal.design.codesign(changed, motion, metric, max_steps=2)
+    best = jaxbal.design.codesign(robot, motion, "rms_force", max_steps=2)
+    assert np.all(np.isfinite(best.metrics["rms_force"]))

@@ -207,3 +207,36 @@ def test_a_limited_hinge_is_turned_into_its_range():
     q, valid = arm.inverse_kinematics(pose, return_valid=True)
     assert bool(valid) and -3.0 <= float(q[0]) <= 3.0
     np.testing.assert_allclose(arm.end_effector(q), pose, atol=1e-12)
+
+
+def test_com_line_on_another_branch_than_its_configurations_is_refused():
+    """The 2R's P5 and P9 from the inverse kinematics with ``branch=-1``, then
+    ``com_line(..., branch=-1)``: the COM inverse kinematics' sign is not the end
+    effector's, and the plan ran in the other elbow mode (the same peak force, the peak
+    moment 4.2 instead of 22.7 N·m) without a message. Refused, naming the branch that
+    joins; the default branch (which joins) is unchanged."""
+    arm = jaxbal.robots.planar_2r()
+    q0 = arm.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
+    q1 = arm.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
+    plan = jaxbal.planning.com_line(arm, q0, q1, BangBang(), 0.5)
+    np.testing.assert_allclose(plan(0.0), q0, atol=1e-12)
+    np.testing.assert_allclose(plan(0.5), q1, atol=1e-12)
+    with pytest.raises(ValueError, match=r"branch=-1 does not start at q_start.*branch=1 joins"):
+        jaxbal.planning.com_line(arm, q0, q1, BangBang(), 0.5, branch=-1)
+    other = arm.inverse_kinematics(jnp.array([0.225, 0.70]), branch=1)
+    with pytest.raises(ValueError, match="no branch joins them"):
+        jaxbal.planning.com_line(arm, q0, other, BangBang(), 0.5)
+
+
+def test_zero_sample_instants_are_named():
+    """``times`` of shape (0,) raised ``ZeroDivisionError: integer modulo by zero``."""
+    arm = jaxbal.robots.planar_2r()
+    q0, q1 = jnp.array([1.46, -2.43]), jnp.array([1.57, -0.84])
+    path = jaxbal.StraightLine(q0, q1, Quintic(), 0.5)
+    for call in (
+        lambda: jaxbal.planning.wrench_along(arm, path, jnp.zeros(0)),
+        lambda: jaxbal.sample(path, jnp.zeros(0)),
+        lambda: motion_samples(arm, [path], jnp.zeros(0)),
+    ):
+        with pytest.raises(ValueError, match=r"times must have shape \(t,\) with t >= 1"):
+            call()

@@ -98,6 +98,7 @@ from jaxbal._src.design_solution import (
 )
 from jaxbal._src.host_bfgs import HOST_MAX_VARIABLES, host_bfgs
 from jaxbal._src.lbfgsb import lbfgsb
+from jaxbal._src.loop_checks import check_samples_eagerly
 from jaxbal._src.metrics import (
     Metric,
     as_motion,
@@ -257,6 +258,11 @@ def codesign(
     motion = as_motion(motions)
     if motion.q.ndim != 2 or motion.q.shape[1] != robot.dof:
         raise ValueError(f"motion q must have shape (t, {robot.dof}), got {motion.q.shape}")
+    # a closed chain's motion off its loops (held while a length changed): its compiled,
+    # callback-free programs did not see it and optimised the wrong mechanism
+    states = [np.asarray(x) for x in (motion.q, motion.qd, motion.qdd)]
+    if all(np.all(np.isfinite(x)) for x in states):  # else named by the state check
+        check_samples_eagerly(robot, *states)
     terms, weights = _objective_terms(objective)
     constraints = dict(constraints or {})
     constrained = tuple(constraints)

@@ -39,7 +39,7 @@ import jax.numpy as jnp
 
 from jaxbal._src.momentum import body_com_positions
 from jaxbal._src.motion_samples import JerkMotion, Motion
-from jaxbal._src.planning import EndEffectorLine, com_line
+from jaxbal._src.planning import JOIN_TOLERANCE, EndEffectorLine, com_line
 from jaxbal._src.profiles import BoundaryPolynomial, TrapezoidalAcceleration
 from jaxbal._src.robot import Robot
 from jaxbal._src.robot_checks import check_robot
@@ -48,10 +48,6 @@ from jaxbal._src.types import Array
 from jaxbal._src.validation import checked_call, guard
 
 __all__ = ["JOIN_TOLERANCE", "ComTrapezoid", "TrapezoidLine", "end_effector_path"]
-
-#: a COM plan must start and end at its configurations to this tolerance on every
-#: body's centre-of-mass position [m].
-JOIN_TOLERANCE = 1e-8
 
 
 def end_effector_path(robot: Robot, line):

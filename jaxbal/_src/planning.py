@@ -21,6 +21,7 @@ References:
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable
 
 import equinox as eqx
@@ -31,7 +32,7 @@ import numpy as np
 from jaxbal._src.actuation import actuator_torque_rate, actuator_torques
 from jaxbal._src.com_ik import com_inverse_kinematics
 from jaxbal._src.linalg import safe_sqrt
-from jaxbal._src.momentum import center_of_mass, shaking_wrench
+from jaxbal._src.momentum import body_com_positions, center_of_mass, shaking_wrench
 from jaxbal._src.profiles import Profile
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import StraightLine, sample
@@ -138,7 +139,61 @@ def com_line(
     start = center_of_mass(robot, q_start)[:dims]
     end = center_of_mass(robot, q_end)[:dims]
     poses = StraightLine(*_end_effectors(robot, q_start, q_end), profile, duration)
-    return ComLine(robot, StraightLine(start, end, profile, duration), free, branch, poses)
+    plan = ComLine(robot, StraightLine(start, end, profile, duration), free, branch, poses)
+    if not is_traced(robot, q_start, q_end, duration, profile, free):
+        _check_joins(plan, q_start, q_end)
+    return plan
+
+
+#: a COM plan must start and end at its configurations to this tolerance on every
+#: body's centre-of-mass position [m] (angles differing by 2π agree).
+JOIN_TOLERANCE = 1e-8
+
+
+def join_gaps(plan: ComLine, q_start, q_end):
+    """``(2,)`` largest distance [m] between the bodies' COMs of the plan at ``t = 0``
+    (``T``) and of ``q_start`` (``q_end``); ``inf`` where the COM target is not
+    reachable."""
+    ends = jnp.stack([jnp.zeros(()), plan.line.duration])
+    q, valid = jax.vmap(lambda t: plan._solve(t, True))(ends)
+
+    def gap(a, b):
+        return jnp.max(
+            jnp.abs(body_com_positions(plan.robot, a) - body_com_positions(plan.robot, b))
+        )
+
+    gaps = jnp.stack([gap(q[0], q_start), gap(q[1], q_end)])
+    return jnp.where(valid, gaps, jnp.inf)
+
+
+def _check_joins(plan: ComLine, q_start, q_end) -> None:
+    """Raise ``ValueError`` unless the plan starts at ``q_start`` and ends at ``q_end``:
+    the COM inverse kinematics on another branch than these configurations' planned the
+    move in the other working mode (the 2R's elbow flipped: the same peak force, the
+    peak moment 4.2 instead of 22.7 N·m) or jumped between modes. One compiled program
+    per plan structure; the branches that would join are named (one sign each)."""
+    gaps = np.asarray(_join_gaps(plan, q_start, q_end))
+    if np.all(gaps <= JOIN_TOLERANCE):
+        return
+    hint = ""
+    if plan.robot.branch_size == 1:
+        signs = [s for s in (1, -1) if _joins_with(plan, s, q_start, q_end)]
+        hint = f"; branch={signs[0]} joins them" if signs else "; no branch joins them"
+    raise ValueError(
+        f"com_line: the COM plan with branch={plan.branch!r} does not start at q_start / "
+        f"end at q_end (largest body-COM gap [m] at start, end: {gaps.tolist()}){hint}: "
+        "give the branch of the COM inverse kinematics that q_start and q_end are on "
+        "(its sign is not the end-effector inverse kinematics')"
+    )
+
+
+_join_gaps = eqx.filter_jit(join_gaps)
+
+
+def _joins_with(plan: ComLine, sign: int, q_start, q_end) -> bool:
+    """Does the plan with COM branch ``sign`` join ``q_start`` and ``q_end``?"""
+    other = dataclasses.replace(plan, branch=sign)
+    return bool(np.all(np.asarray(_join_gaps(other, q_start, q_end)) <= JOIN_TOLERANCE))
 
 
 @eqx.filter_jit

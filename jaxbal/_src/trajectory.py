@@ -58,6 +58,8 @@ def sample(path: Callable, times: Float[Array, " t"], order: int = 2) -> tuple:
 
 
 def _sampled(path: Callable, times, order: int) -> tuple:
+    if times.ndim != 1 or times.shape[0] == 0:  # zero instants: a ZeroDivisionError
+        raise ValueError(f"times must have shape (t,) with t >= 1 [s], got {times.shape}")
     return tuple(jax.vmap(lambda t: time_derivatives(path, t, order))(times))
 
 
