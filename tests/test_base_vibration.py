@@ -117,6 +117,33 @@ def test_residual_amplitude_is_the_fourier_integral_of_the_force(move):
     assert repr(peak).endswith("samples=401, carries_robot=False)")  # short, in messages
 
 
+def test_residual_amplitude_of_a_damped_mode_is_its_envelope(move):
+    """After the move a mode of damping ζ rings as the exact free response
+    ``η(t) = e^{−ζωt}(η_T cos ω_d t + (η̇_T + ζωη_T)/ω_d sin ω_d t)``: its amplitude is
+    the largest ``|η(t)| e^{ζωt}`` over a period, sampled densely from the computed
+    ``η_T, η̇_T`` (``sqrt(η_T² + (η̇_T/ω)²)`` was 0.3 % low at ζ = 0.02, 10 % at 0.3).
+    A damping ratio ≥ 1 (no ringing) is refused."""
+    arm, times, motion = move
+    force, moment = _force(arm, motion)
+    for zeta in (0.0, 0.02, 0.3, 0.9):
+        base = rigid_base(300.0, 5.0, zeta, ("y",))
+        eta, rate = (float(v[-1, 0]) for v in base_response(base, times, force, moment))
+        omega = 2 * np.pi * 5.0
+        damped = omega * np.sqrt(1 - zeta**2)
+        t = np.linspace(0.0, 2 * np.pi / damped, 200_001)
+        ring = eta * np.cos(damped * t) + (rate + zeta * omega * eta) / damped * np.sin(damped * t)
+        ours = float(residual_amplitude(base, times, force, moment)[0])
+        assert ours == pytest.approx(np.max(np.abs(ring)), rel=1e-9)
+        metric = BaseVibration(base, times)(arm, motion)
+        assert float(metric) == pytest.approx(ours, rel=1e-12)
+    overdamped = rigid_base(300.0, 5.0, 1.0, ("y",))
+    with pytest.raises(ValueError, match="underdamped modes, damping ratio < 1"):
+        residual_amplitude(overdamped, times, force, moment)
+    with pytest.raises(ValueError, match="underdamped modes"):
+        BaseVibration(overdamped, times)
+    assert BaseVibration(overdamped, times, "peak")(arm, motion) > 0
+
+
 def test_a_force_balanced_arm_leaves_the_base_still(move):
     """Counterweights by the closed form (Briot et al. 2012, eq 23): zero shaking force,
     so the translational modes neither move nor ring (1e-12 of the unbalanced arm's)."""

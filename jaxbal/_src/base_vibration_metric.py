@@ -25,6 +25,7 @@ from jaxbal._src.base_vibration import (
     _response,
     _uniform,
     carrying,
+    envelope,
 )
 from jaxbal._src.metrics import _wrench, as_motion
 from jaxbal._src.momentum import total_mass
@@ -65,6 +66,8 @@ class BaseVibration(eqx.Module):
         self.carries_robot = bool(carries_robot)
         if self.carries_robot:
             carrying(base, 0.0)  # a rotation mode is refused here, not at the first call
+        if kind == "residual":
+            envelope(base, jnp.zeros(len(self.damping)), jnp.zeros(len(self.damping)))
 
     @property
     def __name__(self) -> str:
@@ -100,7 +103,7 @@ class BaseVibration(eqx.Module):
         x, y = _response(base, jnp.asarray(self.times), wrench, _uniform(self.times))
         if self.kind == "peak":
             return jnp.max(_norm(x))
-        return _norm(_norm(jnp.stack([x[-1], y[-1]], axis=-1)))
+        return _norm(envelope(base, x[-1], y[-1]))
 
 
 def refuse_rescaled_times(metrics, trajectory) -> None:
