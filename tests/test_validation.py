@@ -73,6 +73,10 @@ def test_non_finite_state_and_scalar_gravity_are_refused():
         jaxbal.shaking_wrench(robot, jnp.array([jnp.nan, 0.0]), jnp.ones(2), jnp.ones(2))
     with pytest.raises(ValueError, match="gravity must have shape"):
         jaxbal.shaking_wrench(robot, jnp.ones(2), jnp.ones(2), jnp.ones(2), gravity=-9.81)
+    # a NaN gravity was reported as an overflow of the robot's largest parameter
+    for function in (jaxbal.shaking_wrench, jaxbal.actuator_torques, jaxbal.inverse_dynamics):
+        with pytest.raises(ValueError, match=r"gravity must be finite \[m/s\^2\]"):
+            function(robot, jnp.ones(2), jnp.ones(2), jnp.ones(2), gravity=[0.0, np.nan, 0.0])
 
 
 # --- profiles and planning: checked where they are used (eager, jit, tree_at) ---------

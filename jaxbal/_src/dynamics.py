@@ -103,7 +103,7 @@ def _inverse_dynamics(
     "before"); with ``loops`` the state must also close a closed chain's loops (the
     actuator torques'; the generalised forces of all coordinates are defined for any
     state, e.g. the bias ``h(q, q̇)`` of a forward dynamics at ``q̈ = 0``)."""
-    q, qd, qdd, check = state_check(robot, q, qd, qdd, loops=loops)
+    q, qd, qdd, check = state_check(robot, q, qd, qdd, loops=loops, gravity=gravity)
     if formulation is None:
         straight = _straight_kane_forces_loops if check.traced_loops else _straight_kane_forces
         formulation = straight if _REPLAY.value else straight.as_written

@@ -235,7 +235,7 @@ def _shaking_wrench(
     the straight-line replay (the benchmark's "before"); ``None``: as set by
     :func:`replayed`. ``loops=False``: a closed chain's loop closures not required (the
     wrench of its bodies at any state: :func:`tree_wrench`)."""
-    q, qd, qdd, check = state_check(robot, q, qd, qdd, loops=loops)
+    q, qd, qdd, check = state_check(robot, q, qd, qdd, loops=loops, gravity=gravity)
     replay = _REPLAY.value if replay is None else replay
     straight = _straight_physics_loops if check.traced_loops else _straight_physics
     physics = straight if replay else straight.as_written

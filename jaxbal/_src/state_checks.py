@@ -66,7 +66,7 @@ class StateCheck:
         return guard(outputs, ~(excess <= 1.0), LOOP_MESSAGE, excess)
 
 
-def state_check(robot: Robot, q, qd, qdd, loops: bool = False):
+def state_check(robot: Robot, q, qd, qdd, loops: bool = False, gravity=None):
     """``(q, q̇, q̈, check)``: the state as float arrays, shape-checked ``(dof,)``, and its
     :class:`StateCheck`; ``loops``: the physics of a *motion* of the robot (the shaking
     wrench, the actuator torques), whose closed chain must close its loops.
@@ -75,7 +75,9 @@ def state_check(robot: Robot, q, qd, qdd, loops: bool = False):
     state: a runtime check's value passes a barrier (a ``cond``), and a state taken
     through it is stacked, copied and sliced before any physics can fuse with it, which
     cost the DUAL-V's vmapped wrench ~2x (one fused loop became about twenty). A
-    concrete state is checked at once for finiteness, before anything is evaluated."""
+    concrete state is checked at once for finiteness, before anything is evaluated, and
+    so is a concrete ``gravity`` (a NaN one was reported as an overflow of the robot's
+    largest parameter)."""
     q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
     for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
         check_shape(name, value, (robot.dof,))
@@ -83,6 +85,9 @@ def state_check(robot: Robot, q, qd, qdd, loops: bool = False):
     if concrete:  # concrete (even inside a jit): checked in NumPy now
         state = np.stack([np.asarray(q), np.asarray(qd), np.asarray(qdd)])
         guard(None, ~np.isfinite(state), MESSAGE, state)
+    if gravity is not None and not is_traced(gravity):
+        g = np.asarray(gravity, dtype=float)
+        guard(None, ~np.isfinite(g), "gravity must be finite [m/s^2]", g)
     return q, qd, qdd, StateCheck(robot, (q, qd, qdd), concrete, loops)
 
 
