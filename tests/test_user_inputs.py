@@ -240,3 +240,25 @@ def test_zero_sample_instants_are_named():
     ):
         with pytest.raises(ValueError, match=r"times must have shape \(t,\) with t >= 1"):
             call()
+
+
+def test_export_names_counter_masses_the_files_compiler_bounds(tmp_path):
+    """A file with ``<compiler boundinertia>``: MuJoCo raises the exported point
+    counter-mass's zero inertia to the bound, so the written model shakes otherwise and
+    the export was refused as "the robot was changed". Now the message names the
+    counter-mass, what MuJoCo made of it and the remedy; a counter-mass with an inertia
+    above the bound exports."""
+    xml = ARM.replace("<mujoco>", '<mujoco><compiler boundinertia="1e-4"/>')
+    source = tmp_path / "arm.xml"
+    source.write_text(xml)
+    robot = jaxbal.robots.from_mjcf(str(source), end_effector_site="tip")
+    point = jaxbal.robots.add_counter_mass(robot, "link", [-0.1, 0, 0], 2.0)
+    with pytest.raises(
+        ValueError, match=r"counter_link: mass 2 -> 2 kg, inertia trace 0 -> 0.0003"
+    ):
+        jaxbal.robots.export_balanced(str(source), point, str(tmp_path / "out.xml"))
+    body = jaxbal.robots.add_counter_mass(
+        robot, "link", [-0.1, 0, 0], 2.0, inertia=1e-3 * np.eye(3)
+    )
+    jaxbal.robots.export_balanced(str(source), body, str(tmp_path / "out.xml"))
+    assert "counter_link" in (tmp_path / "out.xml").read_text()

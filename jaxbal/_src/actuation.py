@@ -48,7 +48,9 @@ def velocity_basis(robot: Robot, q: Coordinates) -> Float[Array, "dof m"]:
 def actuator_torques(
     robot: Robot, q: Coordinates, qd: Coordinates, qdd: Coordinates, gravity: Vec3 | None = None
 ) -> Float[Array, " a"]:
-    """Actuator torques/forces ``(a,)`` [N·m or N] that drive the state ``(q, q̇, q̈)``.
+    """Actuator torques/forces ``(a,)`` [N·m or N] that drive the state ``(q, q̇, q̈)``:
+    at the actuated joints (a motor behind a gear of ratio N supplies them / N; MJCF
+    ``<actuator gear>`` is not applied).
 
     Minimum-norm over the actuators when they are redundant (see the module doc).
     One sample; batch with ``jax.vmap``.

@@ -157,11 +157,35 @@ def _check_same_wrench(robot: MjcfRobot, path: Path, ignore_meshes: bool) -> Non
         scale = max(float(scale), 1e-300)
         gap = float(np.max(np.abs(np.asarray(ours) - np.asarray(theirs))))
         if gap > EXPORT_RTOL * scale:
+            _refuse_changed_counters(robot, written)
             raise ValueError(
                 f"the written model's shaking wrench differs from the robot's by {gap:.3g} "
                 f"(of {scale:.3g}): the robot was changed besides its counter-masses "
                 "(with_body, eqx.tree_at) or is not the robot of this file"
             )
+
+
+def _refuse_changed_counters(robot: MjcfRobot, written: MjcfRobot) -> None:
+    """Raise ``ValueError`` naming the counter-masses whose mass or inertia (trace) MuJoCo
+    changed when compiling the written file: a ``<compiler boundmass=… boundinertia=…>``
+    (or ``balanceinertia``) raises small ones, a point mass's zero inertia to the bound
+    (the export was refused as "the robot was changed")."""
+    changed = []
+    for name, _, _, mass, inertia in _counters(robot):
+        i = written.mass_names().index(name)
+        m, trace = float(written.mass[i]), float(np.trace(np.asarray(written.inertia[i])))
+        if not (np.isclose(m, mass, rtol=1e-9) and np.isclose(trace, np.trace(inertia), 1e-9)):
+            changed.append(
+                f"{name}: mass {mass:.6g} -> {m:.6g} kg, inertia trace "
+                f"{np.trace(inertia):.6g} -> {trace:.6g} kg m^2"
+            )
+    if changed:
+        raise ValueError(
+            f"MuJoCo changed counter-masses when compiling the written file ({'; '.join(changed)}):"
+            " the file's <compiler boundmass/boundinertia/balanceinertia> raises small masses"
+            " and inertias; give each counter-mass a mass and inertia of at least those"
+            " bounds (add_counter_mass(..., inertia=...))"
+        )
 
 
 def export_balanced(source, robot: MjcfRobot, path=None, *, ignore_meshes: bool = False) -> str:
