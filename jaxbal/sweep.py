@@ -43,7 +43,10 @@ Cartesian product of ``axes`` and returns an :class:`xarray.Dataset`::
   store (readable with ``xarray.open_zarr(path, consolidated=False)`` or
   :func:`open_sweep`) and marked done; after an interruption ``resume=True``
   recomputes only the missing blocks and the store ends identical to an
-  uninterrupted run. Progress is shown with tqdm (rate and ETA; ``progress=False``).
+  uninterrupted run. The store's fingerprint covers the axes, robot, motion and θ,
+  and the metric's and setters' *code* (bytecode, constants, captured values and the
+  module constants they read): a resume with any of them changed is refused, naming
+  what changed. Progress is shown with tqdm (rate and ETA; ``progress=False``).
 * **Cluster.** ``backend="ray"`` (or a :class:`RayBackend`) sends the blocks as Ray
   tasks to the cluster of ``ray.init(address=…)`` (a new local one if none), retries a
   block whose worker died and writes it into the same store (``pip install

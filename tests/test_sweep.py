@@ -210,7 +210,7 @@ def test_existing_store_needs_resume_and_the_same_sweep(arm, tmp_path):
     jaxbal.sweep("peak_force", robot, motion, {"payload": [0.0, 0.5]}, store=path, progress=False)
     with pytest.raises(FileExistsError, match="resume=True"):
         jaxbal.sweep("peak_force", robot, motion, {"payload": [0.0, 0.5]}, store=path)
-    with pytest.raises(ValueError, match="different sweep"):
+    with pytest.raises(ValueError, match="different sweep; .*: the axes or their values\\. A"):
         jaxbal.sweep("peak_force", robot, motion, {"payload": [0.0, 0.6]}, store=path, resume=True)
     again = jaxbal.sweep(
         "peak_force", robot, motion, {"payload": [0.0, 0.5]}, store=path, resume=True
@@ -222,8 +222,8 @@ def test_existing_store_needs_resume_and_the_same_sweep(arm, tmp_path):
     slower = type(motion)(*(part * 0.5 for part in motion))
     others = {"robot": (heavier, motion, "peak_force"), "motion": (robot, slower, "peak_force"),
               "metric": (robot, motion, "rms_force")}  # fmt: skip
-    for r, m, metric in others.values():
-        with pytest.raises(ValueError, match="robot, motion, metric or θ differ"):
+    for part, (r, m, metric) in others.items():
+        with pytest.raises(ValueError, match=f"changed since it was written: the {part}"):
             jaxbal.sweep(metric, r, m, {"payload": [0.0, 0.5]}, store=path, resume=True)
     rebuilt = jaxbal.robots.planar_2r()  # the same robot, built again: resumed
     assert bool(eqx.tree_equal(rebuilt, robot))

@@ -37,7 +37,12 @@ def list_experiments():
     """List the experiments that ``reproduce`` runs."""
     from jaxbal._src.reproduce import discover
 
-    for experiment in discover():
+    try:
+        experiments = discover()
+    except FileNotFoundError as error:  # an install without the repository's experiments/
+        typer.echo(f"error: {error}", err=True)
+        raise typer.Exit(code=2) from None
+    for experiment in experiments:
         typer.echo(f"{experiment.name:28s} {experiment.title}")
 
 
@@ -337,7 +342,10 @@ def sweep_command(
             store=out, resume=resume, backend=chosen, progress=progress,
             attrs=loaded.description, **loaded.options,
         )  # fmt: skip
-    except (ValueError, FileExistsError) as error:
+    except FileExistsError:  # the Python call's message names resume=True
+        typer.echo(f"error: {out} exists: pass --resume to continue it, or remove it", err=True)
+        raise typer.Exit(code=2) from None
+    except ValueError as error:
         typer.echo(f"error: {error}", err=True)
         raise typer.Exit(code=2) from None
     sizes = ", ".join(f"{k}={v}" for k, v in dataset.sizes.items())

@@ -27,14 +27,21 @@ README_END = "<!-- results:end -->"
 
 
 def experiments_dir() -> Path:
-    """The repository's ``experiments/`` folder (next to the ``jaxbal`` package)."""
-    here = Path(__file__).resolve().parent.parent / "experiments"
-    if here.is_dir():
-        return here
-    cwd = Path.cwd() / "experiments"
-    if cwd.is_dir():
-        return cwd
-    raise FileNotFoundError("no experiments/ folder next to jaxbal or in the current directory")
+    """The repository's ``experiments/`` folder: next to the ``jaxbal`` package (an
+    editable install, from any directory), else in the current directory.
+
+    Raises:
+        FileNotFoundError: neither exists (an install from a wheel carries no
+            experiments: run from a clone of the repository).
+    """
+    package = Path(__file__).resolve().parent.parent  # jaxbal/_src/reproduce.py -> jaxbal/
+    for folder in (package.parent / "experiments", Path.cwd() / "experiments"):
+        if folder.is_dir():
+            return folder
+    raise FileNotFoundError(
+        f"no experiments/ folder next to the jaxbal package ({package.parent}) or in the "
+        "current directory: run from a clone of the repository (pip install -e .)"
+    )
 
 
 def discover(folder: Path | None = None) -> list[Experiment]:

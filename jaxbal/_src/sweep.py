@@ -18,24 +18,19 @@ from pathlib import Path
 import numpy as np
 
 from jaxbal._src.sweep_axes import Axis, Layout, grid
+from jaxbal._src.sweep_digest import check_resumable, fingerprint, sweep_parts
+from jaxbal._src.sweep_inputs import check_bounds, check_names, check_shapes, trajectory_shapes
 from jaxbal._src.sweep_loops import check_loops
 from jaxbal._src.sweep_program import (
     bound_cache,
     build,
     chunk_memory,
     device_mesh,
-    output_shapes,
     release_programs,
     shape_key,
 )
 from jaxbal._src.sweep_run import run_backend
-from jaxbal._src.sweep_store import (
-    SweepStore,
-    fingerprint,
-    inputs_digest,
-    open_dataset,
-    remove_partial_files,
-)
+from jaxbal._src.sweep_store import SweepStore, open_dataset, remove_partial_files
 
 __all__ = [
     "DEFAULT_MEMORY_BUDGET",
@@ -84,27 +79,6 @@ def _axes(axes: Mapping) -> dict[str, Axis]:
         seen |= set(axis.values)
         named[dim] = axis
     return named
-
-
-def check_bounds(axes: dict[str, Axis], robot, plan) -> None:
-    """Design variables swept below their lower bound (``robot.design_lower_bounds()``,
-    e.g. a negative mass) are refused before anything runs, naming axis and value."""
-    if not hasattr(robot, "design_lower_bounds"):
-        return
-    lower = robot.design_lower_bounds()
-    kinds = {name: how for name, how, _ in plan}
-    for dim, axis in axes.items():
-        for name, values in axis.values.items():
-            if kinds.get(name) != "design" or name not in lower:
-                continue
-            bound = np.asarray(lower[name], dtype=float)
-            bad = np.any(values.reshape(len(values), -1) < bound.reshape(-1), axis=1)
-            if bad.any():
-                worst = values[np.argmax(bad)].tolist()
-                raise ValueError(
-                    f"sweep axis {dim!r}: {name} = {worst!r} is below its lower bound "
-                    f"{bound.tolist()} ({type(robot).__name__}.design_lower_bounds())"
-                )
 
 
 def plan_parameters(axes: dict[str, Axis], robot, motion) -> tuple:
@@ -271,6 +245,7 @@ def prepare(
     function = resolve_metric(metric) if isinstance(metric, str) else metric
     plan = plan_parameters(axes, robot, motion)
     check_bounds(axes, robot, plan)
+    check_shapes(axes, robot, plan)
     check_loops(axes, robot, motion, plan)
     evaluation = "direct"
     fast = _affine(metric, robot, motion, axes, plan, trajectory, linear)
@@ -282,13 +257,12 @@ def prepare(
         function, robot, motion, theta, plan, device_mesh(device_list) if mesh else None
     )
     first = {n: v[:1] for a in axes.values() for n, v in a.values.items()}
-    outputs = output_shapes(program, dynamic, first)
+    outputs = trajectory_shapes(program, dynamic, first, motion, theta)
+    check_names(axes, outputs)
     return axes, program, dynamic, outputs, evaluation
 
 
-def _metadata(
-    metric, robot, axes, outputs, units, output_dims, attrs, evaluation="direct", inputs=""
-):
+def _metadata(metric, robot, axes, outputs, units, output_dims, attrs, evaluation, parts):
     if isinstance(units, str):
         if len(outputs) != 1:
             raise ValueError(f"units as one string needs one output, got {sorted(outputs)}")
@@ -304,13 +278,12 @@ def _metadata(
     base = {"metric": name, "robot": type(robot).__name__}
     if evaluation != "direct":  # part of the fingerprint: a resume never mixes the two
         base["evaluation"] = "affine"
-    extra = {"block_outputs": {k: str(v.dtype) for k, v in outputs.items()}, **base}
-    extra["inputs"] = inputs  # the robot, motion, metric and θ (not shown as attributes)
     return {
         "units": dict(units or {}),
         "output_dims": dict(output_dims or {}),
         "attrs": {**base, **(attrs or {})},
-        "fingerprint": fingerprint(axes, outputs, extra),
+        "fingerprint": fingerprint(parts),
+        "parts": parts,
     }
 
 
@@ -358,17 +331,21 @@ def sweep(
     ``"affine"`` when the fast path ran.
 
     Raises:
-        ValueError: an unknown parameter, values that are not finite or below a design
-            variable's lower bound (naming the axis), a runtime check failing in a block
-            (naming its parameter ranges), or a non-finite output (naming the point;
-            ``allow_nonfinite=True`` stores it instead). The blocks finished before
-            stay in the store.
+        ValueError: an unknown parameter, values that are not finite, below a design
+            variable's lower bound or of a shape that does not fit it, an axis named
+            like an output or ``_jaxbal`` (naming the axis), a trajectory variable
+            nobody gives (naming it), a closed chain's fixed motion off the robot's
+            loops, a store resumed with other inputs or code (naming what changed), a
+            runtime check failing in a block (naming its parameter ranges), or a
+            non-finite output (naming the point; ``allow_nonfinite=True`` stores it
+            instead). The blocks finished before stay in the store.
+        FileExistsError: ``store`` exists and ``resume`` is False.
     """
     axes, program, dynamic, outputs, evaluation = prepare(
         metric, robot, motion, axes, trajectory=trajectory, devices=devices, linear=linear
     )
-    inputs = inputs_digest(metric, robot, motion, trajectory)
-    meta = _metadata(metric, robot, axes, outputs, units, output_dims, attrs, evaluation, inputs)
+    parts = sweep_parts(metric, robot, motion, trajectory, axes, outputs, evaluation)
+    meta = _metadata(metric, robot, axes, outputs, units, output_dims, attrs, evaluation, parts)
     count = program.mesh.size
     sizes = tuple(a.size for a in axes.values())
     path = None if store is None else Path(store)
@@ -377,11 +354,7 @@ def sweep(
             raise FileExistsError(f"{path} exists: pass resume=True to continue it, or remove it")
         remove_partial_files(path)
         opened = SweepStore.open(path)
-        if opened.description["fingerprint"] != meta["fingerprint"]:
-            raise ValueError(
-                f"{path} holds a different sweep (its axes, values, outputs, robot, motion, "
-                "metric or θ differ): resume it with the same inputs, or write a new store"
-            )
+        check_resumable(path, opened.description, parts)
     else:
         if chunk_size is None:
             first, _ = Chunks(axes, Layout.for_chunk(sizes, 1), 1).params(0)

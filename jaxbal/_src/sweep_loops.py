@@ -10,7 +10,9 @@ anything compiles, :func:`check_loops` evaluates the loop closures
 (:func:`jaxbal.state_valid`) of the robots at the first and last value of each axis
 with a setter and refuses the sweep naming the axis; a motion factory ``motion(robot,
 θ)``, solved for every point, is the remedy. Design variables (masses, counter-mass
-positions, payloads) do not change the loops and are not checked.
+positions, payloads) do not change the loops and are not checked. The motion on the
+robot as given is checked first, eagerly as the metrics check it
+(:func:`~jaxbal._src.loop_checks.check_samples_eagerly`).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from __future__ import annotations
 import jax
 import numpy as np
 
+from jaxbal._src.loop_checks import check_samples_eagerly
 from jaxbal._src.metrics import as_motion
 from jaxbal._src.motion import has_loops, states_valid
 from jaxbal._src.sweep_program import apply_parameters
@@ -31,17 +34,25 @@ _valid = jax.jit(states_valid)
 
 
 def check_loops(axes: dict, robot, motion, plan: tuple) -> None:
-    """Refuse an axis whose setter moves a fixed motion off the robot's loops (module
-    doc). Nothing is checked for a serial robot, a motion factory or design variables.
+    """Refuse a fixed motion off the loops of the robot as given (e.g. held while a
+    length was changed with ``eqx.tree_at``: the affine fast path would evaluate it
+    without the metrics' runtime checks), and an axis whose setter moves it off them
+    (module doc). Nothing is checked for a serial robot or a motion factory.
 
     Raises:
-        ValueError: naming the axis, the parameter's value and the first samples off
-            the loops.
+        ValueError: the loop-closure message of the metrics naming the samples off the
+            loops (the robot as given), or naming the axis, the parameter's value and
+            the first samples off the loops.
     """
-    if callable(motion) or not any(how == "set" for _, how, _ in plan):
+    if callable(motion):
         return
     motion = as_motion(motion)
     if not has_loops(robot):
+        return
+    states = [np.asarray(part) for part in motion]
+    if all(np.all(np.isfinite(x)) for x in states):  # else named by the output check
+        check_samples_eagerly(robot, *states)  # the motion held on the robot as given
+    if not any(how == "set" for _, how, _ in plan):
         return
     first = {n: v[0] for axis in axes.values() for n, v in axis.values.items()}
     for dim, axis in axes.items():

@@ -14,64 +14,26 @@ Layout (zarr format 3, readable by ``xarray.open_zarr(path, consolidated=False)`
   leaves a store whose done blocks are complete; ``resume=True`` recomputes the others.
 
 The group attribute ``jaxbal_sweep`` records the axes, the block shape and a fingerprint
-of every value the sweep depends on — the axes, the outputs' shapes, and the robot, the
-motion, the metric and the fixed θ (their arrays and structure, :func:`inputs_digest`);
-a resumed sweep must match it, so a store resumed with another robot or motion is
-refused instead of mixing the two.
+of every value and every piece of code the sweep depends on — the axes, the outputs'
+shapes, the robot, the motion, the fixed θ, and the metric and the axes' setters by
+their code (:mod:`jaxbal._src.sweep_digest`), with the digest of each part; a resumed
+sweep must match it, so a store resumed with another robot, motion, metric body or
+setter is refused, naming what changed, instead of mixing the two.
 """
 
 from __future__ import annotations
 
-import hashlib
-import json
-import re
 from pathlib import Path
 
-import jax
 import numpy as np
 
 from jaxbal._src.sweep_axes import Axis, Layout
 
-__all__ = ["SweepStore", "fingerprint", "inputs_digest", "open_dataset"]
+__all__ = ["MANIFEST", "SweepStore", "open_dataset"]
 
-_MANIFEST = "_jaxbal"
+#: the group of the store's own records (``done``)
+MANIFEST = "_jaxbal"
 _FORMAT = 1
-
-
-def fingerprint(axes: dict[str, Axis], outputs: dict, extra: dict) -> str:
-    """SHA-256 of the axes' names and values, the outputs' shapes and ``extra``."""
-    digest = hashlib.sha256()
-    for dim, axis in axes.items():
-        digest.update(dim.encode())
-        for name, values in axis.values.items():
-            digest.update(name.encode())
-            digest.update(np.ascontiguousarray(values, dtype=np.float64).tobytes())
-    digest.update(json.dumps({k: list(v.shape) for k, v in outputs.items()}).encode())
-    digest.update(json.dumps(extra, sort_keys=True, default=str).encode())
-    return digest.hexdigest()
-
-
-def _without_addresses(text: str) -> str:
-    """``text`` without object addresses (``<function f at 0x7f…>``), which change from
-    one process to the next."""
-    return re.sub(r" at 0x[0-9a-fA-F]+", "", text)
-
-
-def inputs_digest(*values) -> str:
-    """SHA-256 of pytrees (robot, motion or motion factory, metric, θ): the structure
-    (classes, static fields, function names) and every array leaf's dtype, shape and
-    bytes; any other leaf by its ``repr``."""
-    digest = hashlib.sha256()
-    for value in values:
-        leaves, treedef = jax.tree_util.tree_flatten(value)
-        digest.update(_without_addresses(str(treedef)).encode())
-        for leaf in leaves:
-            if isinstance(leaf, jax.Array | np.ndarray | np.generic | float | int | bool):
-                array = np.ascontiguousarray(np.asarray(leaf))
-                digest.update(f"{array.dtype}{array.shape}".encode() + array.tobytes())
-            else:
-                digest.update(_without_addresses(repr(leaf)).encode())
-    return digest.hexdigest()
 
 
 def _output_dims(name: str, shape: tuple, given) -> list[str]:
@@ -89,12 +51,12 @@ class SweepStore:
     def __init__(self, group, layout: Layout):
         self.group = group
         self.layout = layout
-        self.done_array = group[_MANIFEST]["done"]
+        self.done_array = group[MANIFEST]["done"]
 
     @classmethod
     def create(cls, path, axes: dict[str, Axis], layout: Layout, outputs: dict, meta: dict):
         """A new store (``outputs``: name ↦ ShapeDtypeStruct of one point; ``meta``:
-        ``units``, ``output_dims``, ``attrs``, ``fingerprint``)."""
+        ``units``, ``output_dims``, ``attrs``, ``fingerprint``, ``parts``)."""
         import zarr
 
         store = zarr.storage.MemoryStore() if path is None else str(path)
@@ -135,7 +97,7 @@ class SweepStore:
             array.attrs["units"] = units.get(name, "")
             if coordinates:
                 array.attrs["coordinates"] = " ".join(coordinates)
-        manifest = group.create_group(_MANIFEST)
+        manifest = group.create_group(MANIFEST)
         manifest.create_array("done", shape=(layout.count,), chunks=(1,), dtype="u1", fill_value=0)
         description = {
             "format": _FORMAT,
@@ -144,6 +106,7 @@ class SweepStore:
             "block": list(layout.block),
             "outputs": sorted(outputs),
             "fingerprint": meta["fingerprint"],
+            "parts": meta["parts"],
         }
         group.attrs.update({**meta.get("attrs", {}), "jaxbal_sweep": description})
         return cls(group, layout)
@@ -218,7 +181,7 @@ def open_dataset(source, *, complete: bool = True):
             raise FileNotFoundError(f"no sweep store at {source}")
         group = zarr.open_group(str(source), mode="r", zarr_format=3)
     description = describe(group)
-    done = np.asarray(group[_MANIFEST]["done"][:]).astype(bool)
+    done = np.asarray(group[MANIFEST]["done"][:]).astype(bool)
     if complete and not done.all():
         missing = int((~done).sum())
         raise ValueError(f"{missing} of {done.size} blocks of the sweep are not done (resume it)")

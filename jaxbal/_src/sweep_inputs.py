@@ -1,0 +1,114 @@
+"""Checks of a sweep's inputs that run before anything compiles, each refusing with a
+``ValueError`` that names the axis or parameter at fault.
+
+* :func:`check_bounds`: design variables swept below their lower bound;
+* :func:`check_shapes`: a design variable's values of a shape that does not broadcast to
+  the variable's (e.g. ``(n, 3)`` values of a ``(2,)`` counter-mass vector);
+* :func:`check_names`: an axis or parameter named like an array the store holds
+  already (the metric's outputs, e.g. ``value``, and the ``_jaxbal`` manifest);
+* :func:`trajectory_shapes`: the outputs' shapes, a motion factory that reads a
+  trajectory variable that is neither swept nor given (``trajectory=``) named.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from jaxbal._src.sweep_program import output_shapes
+from jaxbal._src.sweep_store import MANIFEST, parameter_key
+
+__all__ = ["check_bounds", "check_names", "check_shapes", "trajectory_shapes"]
+
+
+def check_bounds(axes: dict, robot, plan) -> None:
+    """Design variables swept below their lower bound (``robot.design_lower_bounds()``,
+    e.g. a negative mass) are refused before anything runs, naming axis and value."""
+    if not hasattr(robot, "design_lower_bounds"):
+        return
+    lower = robot.design_lower_bounds()
+    kinds = {name: how for name, how, _ in plan}
+    for dim, axis in axes.items():
+        for name, values in axis.values.items():
+            if kinds.get(name) != "design" or name not in lower:
+                continue
+            bound = np.asarray(lower[name], dtype=float)
+            bad = np.any(values.reshape(len(values), -1) < bound.reshape(-1), axis=1)
+            if bad.any():
+                worst = values[np.argmax(bad)].tolist()
+                raise ValueError(
+                    f"sweep axis {dim!r}: {name} = {worst!r} is below its lower bound "
+                    f"{bound.tolist()} ({type(robot).__name__}.design_lower_bounds())"
+                )
+
+
+def check_shapes(axes: dict, robot, plan) -> None:
+    """Refuse a design variable swept with values ``(n, *shape)`` whose ``shape`` does
+    not broadcast to the variable's (a scalar per point always does).
+
+    Raises:
+        ValueError: naming the axis, the variable, its shape and the values' shape.
+    """
+    design = robot.design() if hasattr(robot, "design") else {}
+    kinds = {name: how for name, how, _ in plan}
+    for dim, axis in axes.items():
+        for name, values in axis.values.items():
+            if kinds.get(name) != "design":
+                continue
+            leaf = tuple(np.shape(design[name]))
+            try:
+                fits = np.broadcast_shapes(values.shape[1:], leaf) == leaf
+            except ValueError:
+                fits = False
+            if not fits:
+                n = len(values)
+                raise ValueError(
+                    f"sweep axis {dim!r}: {name} is a design variable of shape {leaf} of "
+                    f"{type(robot).__name__}, so its {n} values need shape {(n, *leaf)} (or "
+                    f"({n},), a scalar per point); got values of shape {values.shape}"
+                )
+
+
+def check_names(axes: dict, outputs: dict) -> None:
+    """Refuse an axis or parameter stored under a name that the store gives to an output
+    of the metric (``outputs``; ``value`` for a metric returning one array) or to its
+    manifest (``_jaxbal``).
+
+    Raises:
+        ValueError: naming the clashing name and the reserved ones.
+    """
+    reserved = {*outputs, MANIFEST}
+    for dim, axis in axes.items():
+        stored = {dim} | {
+            parameter_key(dim, name)
+            for name, values in axis.values.items()
+            if not (axis.kind == "grid" and values.ndim == 1)
+        }
+        clash = sorted(stored & reserved)
+        if clash:
+            raise ValueError(
+                f"sweep axis {dim!r}: the name {clash[0]!r} is reserved in the store (the "
+                f"metric's outputs and the manifest: {sorted(reserved)}); name the axis "
+                "otherwise (grid(..., name=PARAMETER) keeps the parameter it sets)"
+            )
+
+
+def trajectory_shapes(program, dynamic, first: dict, motion, theta: dict) -> dict:
+    """:func:`~jaxbal._src.sweep_program.output_shapes`, with a trajectory variable that
+    a motion factory reads but nobody gives refused.
+
+    Raises:
+        ValueError: naming the missing variable and the two ways to give it.
+    """
+    try:
+        return output_shapes(program, dynamic, first)
+    except KeyError as error:
+        key = error.args[0] if error.args else None
+        if not callable(motion) or not isinstance(key, str) or key in first or key in theta:
+            raise
+        given = sorted({*first, *theta})
+        raise ValueError(
+            f"the motion factory {type(motion).__name__} needs the trajectory variable "
+            f"{key!r}, which is neither swept nor given (swept or given: {given}): add an "
+            f"axis {key!r}, or pass trajectory={{{key!r}: value}} to jaxbal.sweep "
+            f"([motion] {key} = … in a spec)"
+        ) from None
