@@ -194,3 +194,33 @@ def test_constraint_excess_is_relative_to_the_bound():
     assert constraint_excess(Solved()) == pytest.approx(0.5)
     Solved.constraints = {"added_mass": (3.003, 3.0)}
     assert constraint_excess(Solved()) == pytest.approx(1e-3)
+
+
+def test_a_design_that_balances_a_com_plan_away_is_refused():
+    """The 2R's ComTrapezoid with free counter-masses against the RMS force: the
+    optimiser drives the design to force balance, where the COM barely moves and the
+    COM plan no longer joins P5 and P9. The compiled co-design saw a finite motion of
+    that degenerate plan and reported RMS force 47 → 3e-8 N as the move's, a design
+    its own factory refused. Now a motion that does not join is NaN to the optimiser,
+    which stays where the plan joins, and the returned design's motion is rebuilt with
+    the checks on: either the co-design refuses (naming the remedy; at the edge of
+    validity, rounding decides) or its motion is valid and its metric re-evaluates."""
+    from jaxbal.design import ComTrapezoid
+
+    arm = jaxbal.robots.planar_2r()
+    q0 = arm.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
+    q1 = arm.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
+    move = ComTrapezoid(q0, q1, jaxbal.sample_times(0.5, 51))
+    try:
+        solution = joint_codesign(
+            arm, move, {"u2": 0.3, "ratio": 0.5}, "rms_force",
+            trajectory_lower=LOWER, trajectory_upper={"u2": 0.4999, "ratio": 1.0},
+            upper={"counter_distance": 0.2},
+        )  # fmt: skip
+    except ValueError as error:
+        assert "no valid motion at payload 5 kg" in str(error) and "bound the counter" in str(error)
+        return
+    motion = move(solution.robot, solution.trajectory)  # raised before: the plan did not join
+    np.testing.assert_allclose(motion.q[0], q0, atol=1e-6)
+    again = payload_metrics(solution.robot, move, solution.trajectory, [5.0], ("rms_force",))
+    np.testing.assert_allclose(again[0, 0], solution.metrics["rms_force"][1], rtol=1e-6)

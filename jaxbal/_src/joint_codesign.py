@@ -55,6 +55,7 @@ from jaxbal._src.design_solution import _contacts, bound_contacts
 from jaxbal._src.lbfgs import lbfgs
 from jaxbal._src.metrics import Motion, check_design_names, metric_name, resolve_metric
 from jaxbal._src.momentum import replayed
+from jaxbal._src.motion_factories import check_planned
 from jaxbal._src.optimize import minimize
 from jaxbal._src.robot import Robot
 from jaxbal._src.robot_checks import check_robot
@@ -356,18 +357,17 @@ def joint_codesign(
         x, after = x_start, at_first
     params = unflat(x)
     optimised = robot.with_design(_to_design_numpy(params["design"], problem))
-    theta = {
-        k: jnp.asarray(v) for k, v in _to_design_numpy(params["trajectory"], theta_problem).items()
-    }
+    theta = _to_design_numpy(params["trajectory"], theta_problem)
+    theta = {k: jnp.asarray(v) for k, v in theta.items()}
     names = [metric_name(m) for m in everything]
     aggregated = [
         np.concatenate([np.asarray(_aggregate(v[:, :n], problem.scales, robust, sharp)),
                         np.max(v[:, n:], axis=0)])
         for v in (before, after)
     ]  # fmt: skip
-    worst = np.max(after, axis=0)[where]
+    check_planned(optimised, motion, theta, payloads)  # a NaN motion was seen by no one
+    worst, (converged, steps, grad_norm, history) = np.max(after, axis=0)[where], status
     excess = worst - np.asarray(bounds)
-    converged, steps, grad_norm, history = status
     return JointSolution(
         design=optimised.design(),
         trajectory=theta,

@@ -35,7 +35,9 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import equinox as eqx
+import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxbal._src.momentum import body_com_positions
 from jaxbal._src.motion_samples import JerkMotion, Motion
@@ -47,7 +49,7 @@ from jaxbal._src.trajectory import StraightLine, sample
 from jaxbal._src.types import Array
 from jaxbal._src.validation import checked_call, guard
 
-__all__ = ["JOIN_TOLERANCE", "ComTrapezoid", "TrapezoidLine", "end_effector_path"]
+__all__ = ["JOIN_TOLERANCE", "ComTrapezoid", "TrapezoidLine", "check_planned", "end_effector_path"]
 
 
 def end_effector_path(robot: Robot, line):
@@ -107,9 +109,36 @@ def _joins(robot: Robot, motion, q_start, q_end, last: int):
     gaps = jnp.stack([gap(motion.q[0], q_start), gap(motion.q[last], q_end)])
     message = (
         "ComTrapezoid: the COM plan does not start at q_start / end at q_end [m]; give "
-        "the branch of the COM inverse kinematics these configurations are on"
+        "the branch of the COM inverse kinematics these configurations are on (or the "
+        "design nearly balances the force: its COM barely moves, so no COM plan joins them)"
     )
+    joins = jnp.all(gaps <= JOIN_TOLERANCE)
+    # with the runtime checks off (a co-design's compiled programs) a motion that does
+    # not join is NaN, so an optimiser sees an invalid design: a force-balancing design
+    # fixes the COM, and the finite motion of its degenerate COM plan was optimised and
+    # reported as the move's
+    motion = jax.tree.map(lambda x: jnp.where(joins, x, jnp.nan), motion)
     return guard(motion, ~(gaps <= JOIN_TOLERANCE), message, gaps)
+
+
+def check_planned(robot: Robot, factory, theta, payloads) -> None:
+    """Raise ``ValueError`` unless ``factory(robot, θ)`` gives a motion at every payload
+    (``(n,)`` [kg]): a co-design's result. Its compiled programs see a refused motion as
+    NaN only, and a design that nearly balances the force makes a COM plan so ill
+    conditioned that a motion the optimiser accepted is refused when evaluated again
+    (the 2R's ComTrapezoid with free counter-masses: RMS force 47 → 3e-5 N, reported as
+    the move's)."""
+    for payload in np.asarray(payloads, dtype=float).reshape(-1):
+        try:
+            factory(robot.with_design({"payload": payload}), theta)
+        except ValueError as error:
+            raise ValueError(
+                f"the co-designed robot and trajectory give no valid motion at payload "
+                f"{payload:g} kg: {error}. A design that (nearly) balances the force fixes "
+                "the COM, so no COM plan (ComTrapezoid) moves the robot: bound the "
+                "counter-masses (upper=), weigh the added mass, or plan the end-effector "
+                "(TrapezoidLine)"
+            ) from None
 
 
 def _check_static(order: int, per_phase: int) -> None:

@@ -76,7 +76,7 @@ def _checked_time(profile, u, value):
     """``value = s(u)``, guarded by a finite ``u`` and a finite ``s(u)``: a NaN time gave a
     silent NaN. Eagerly a ``ValueError`` naming ``u``; under ``jit`` a runtime error."""
     invalid = ~(jnp.isfinite(u) & jnp.isfinite(value))
-    message = f"{type(profile).__name__} profile: the normalised time u = t/T must be finite"
+    message = f"{type(profile).__name__} profile: u must be finite (the normalised time t/T)"
     return guard(value, invalid, message, u)
 
 
