@@ -262,3 +262,21 @@ def test_export_names_counter_masses_the_files_compiler_bounds(tmp_path):
     )
     jaxbal.robots.export_balanced(str(source), body, str(tmp_path / "out.xml"))
     assert "counter_link" in (tmp_path / "out.xml").read_text()
+
+
+def test_cli_names_an_unreachable_end_and_refuses_a_move_that_does_not_move(tmp_path):
+    """``jaxbal balance`` on the exported 2R: an end pose out of reach was blamed on the
+    singular start alone (the advice pointed the wrong way); a move with ``--start``
+    equal to ``--end`` printed a 37.7 kg design balancing 0 N. Both exit 2 naming it."""
+    from typer.testing import CliRunner
+
+    from jaxbal._src.cli import app
+    from jaxbal.mujoco import export_mjcf
+
+    path = tmp_path / "planar_2r.xml"
+    path.write_text(export_mjcf(jaxbal.robots.planar_2r()))
+    move = ["balance", str(path), "--body", "payload", "--start", "0.225,0.25", "--samples", "11"]
+    far = CliRunner().invoke(app, [*move, "--end", "5,5"])
+    assert far.exit_code == 2 and "out of reach?: end pose [5.0, 5.0]" in far.output, far.output
+    still = CliRunner().invoke(app, [*move, "--end", "0.225,0.25"])
+    assert still.exit_code == 2 and "does not move the mechanism" in still.output, still.output

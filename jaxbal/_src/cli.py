@@ -226,6 +226,8 @@ def balance(
         motion = sample(
             mechanism, _floats(start, "--start"), _floats(end, "--end"), duration, samples
         )
+        if not np.any(np.asarray(motion.qd)):  # it printed a design balancing 0 N
+            raise ValueError("the move does not move the mechanism (--start equals --end)")
         bodies = None if counter_bodies is None else counter_bodies.split(",")
         start_design = with_counter_masses(mechanism, bodies)
         free = ("counter_position", "counter_mass") if free_masses else ("counter_position",)

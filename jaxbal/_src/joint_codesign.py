@@ -78,9 +78,9 @@ class JointSolution(NamedTuple):
         trajectory: the optimised trajectory variables (name -> array).
         robot: the optimised robot (nominal payload).
         value: final loss (dimensionless); ``initial_value`` at the start.
-        metrics: name -> ``(before, after)`` over the payloads, as optimised [SI]: the
-            mean, or with ``robust="max"`` the smooth maximum, *below* the worst payload's
-            by up to ``s log(n)/k`` (module doc; the worst: ``payload_metrics``).
+        metrics: name -> ``(before, after)`` over the payloads [SI]: an objective's mean,
+            or (``robust="max"``) its smooth maximum, up to ``s log(n)/k`` *below* the
+            worst (``payload_metrics``); a constraint-only metric's worst payload.
         constraints: name -> ``(worst value over payloads, bound)`` after [SI].
         feasible: every constraint satisfied within :data:`FEASIBILITY_RTOL`.
         converged, steps, grad_norm, history, at_bound: as

@@ -125,7 +125,10 @@ def sensitivity(
             of the compiled structure).
         metric: a metric name (:data:`~jaxbal.design.METRICS`) or a callable
             ``(robot, motion) -> scalar``. Peaks are differentiable almost everywhere
-            (the gradient of the instant of the peak); RMS metrics are smooth.
+            (the gradient of the instant of the peak); RMS metrics are smooth. Two
+            equal peaks make a kink: a symmetric move (a quintic COM line, its peak
+            force at two mirrored samples) gives one one-sided derivative there, which
+            ``check=True`` reports; prefer an RMS metric for such moves.
         wrt: design variable names (default: all of the robot's).
         check: also compute central finite differences and raise if they disagree.
         rel_step: relative finite-difference step (see the module doc).

@@ -156,8 +156,22 @@ def pose_samples(robot: MjcfRobot, start, end, duration, count: int = 101, profi
     line = StraightLine(start, end, Quintic() if profile is None else profile, duration)
     times = sample_times(duration, count)
     states = checked_call(_pose_states, robot, line, times, once=True)
-    hint = "" if bool(np.all(np.asarray(states[3]))) else _singular_start(robot)
+    hint = "" if bool(np.all(np.asarray(states[3]))) else _unreached(robot, start, end)
     return _samples(states, times, "end-effector line", hint)
+
+
+def _unreached(robot: MjcfRobot, start, end) -> str:
+    """The hint of a move that fails: its start or end pose not reached on its own (out of
+    reach; the singular-start advice alone had pointed the wrong way), and the singular
+    start's advice when that applies."""
+    ends = {"start": start, "end": end}
+    missed = [
+        k for k, p in ends.items() if not bool(robot.inverse_kinematics(p, return_valid=True)[1])
+    ]
+    poses = "; ".join(f"{k} pose {np.asarray(ends[k]).tolist()}" for k in missed)
+    return (
+        f" (not reached on its own, out of reach?: {poses})" if missed else ""
+    ) + _singular_start(robot)
 
 
 #: a configuration's loop closures count as met within this [m]; a move ends in the
