@@ -1,10 +1,11 @@
 """The value checks of a robot's parameters, shared by every physics function.
 
-Body masses and inertias (as the physics sees them, derived bodies included) finite and
-non-negative, every floating-point parameter finite (the class's
-``nonnegative_parameters`` also ≥ 0), and the result finite: eagerly a ``ValueError``
-naming the offending values, under ``jit`` a runtime check (:func:`jaxbal.set_runtime_checks`),
-in compiled programs that must stay free of callbacks a mask (:func:`robot_faulty`).
+Body masses (as the physics sees them, derived bodies included) finite and non-negative,
+inertias finite, symmetric and positive semi-definite, every floating-point parameter
+finite (the class's ``nonnegative_parameters`` also ≥ 0), and the result finite: eagerly
+a ``ValueError`` naming the offending values, under ``jit`` a runtime check
+(:func:`jaxbal.set_runtime_checks`), in compiled programs that must stay free of
+callbacks a mask (:func:`robot_faulty`).
 """
 
 from __future__ import annotations
@@ -60,16 +61,15 @@ def _triangle(robot: Robot) -> bool:
 
 
 def _body_faults(robot: Robot):
-    """``(bodies, inertia diagonals, bad mass (b,), bad inertia (b,))`` (masks)."""
+    """``(bodies, bad mass (b,), bad inertia (b,))`` (masks)."""
     bodies = robot.mass_properties()
-    diagonal = jnp.diagonal(bodies.inertia, axis1=-2, axis2=-1)
     bad_mass = ~(jnp.isfinite(bodies.mass) & (bodies.mass >= -ROUNDING))
     finite = jnp.all(jnp.isfinite(bodies.inertia), axis=(-2, -1))
     if getattr(type(robot), "signed_inertias", False):
-        return bodies, diagonal, bad_mass, ~finite
+        return bodies, bad_mass, ~finite
     inertia = jnp.where(finite[..., None, None], bodies.inertia, 0.0)
     bad_inertia = ~finite | _unphysical(inertia, _triangle(robot))
-    return bodies, diagonal, bad_mass, bad_inertia
+    return bodies, bad_mass, bad_inertia
 
 
 def robot_faulty(robot: Robot):
@@ -77,7 +77,7 @@ def robot_faulty(robot: Robot):
     :func:`checked_parameters` reject ``robot``? For compiled code that must stay free of
     runtime-error callbacks (e.g. to be stored in the persistent compilation cache): it
     returns the mask, and the caller raises the named error eagerly."""
-    _, _, bad_mass, bad_inertia = _body_faults(robot)
+    _, bad_mass, bad_inertia = _body_faults(robot)
     faulty = jnp.any(bad_mass) | jnp.any(bad_inertia)
     for invalid in _parameter_faults(robot):
         faulty = faulty | jnp.any(invalid)
@@ -106,14 +106,15 @@ def check_robot(robot: Robot) -> None:
 
 def checked_bodies(robot: Robot, value):
     """``value``, guarded by the robot's mass properties as the physics sees them: every
-    body mass and inertia diagonal finite and ≥ 0 (derived masses included, e.g. the
-    DUAL-V's brass counter-mass ``m_cm − m_tun``), to :data:`ROUNDING` (a derived
-    quantity that is zero up to rounding passes). A robot whose class sets
+    body mass finite and ≥ 0 (derived masses included, e.g. the DUAL-V's brass
+    counter-mass ``m_cm − m_tun``), to :data:`ROUNDING` (a derived quantity that is zero
+    up to rounding passes), every inertia finite, symmetric and positive semi-definite
+    (real bodies: the triangle inequality too; :func:`_unphysical`). A robot whose class sets
     ``signed_inertias = True`` (an exact equivalent model, e.g. the DUAL-V's split model
     with residual inertias ``I − m·p·(l − p)``) is checked for finite inertias only."""
     if is_traced(robot) and not runtime_checks_enabled():
         return value  # the masks would be traced for nothing
-    bodies, diagonal, bad_mass, bad_inertia = _body_faults(robot)
+    bodies, bad_mass, bad_inertia = _body_faults(robot)
     message = "body masses must be finite and >= 0 [kg]"
     value = guard(value, bad_mass, message, bodies.mass, bodies.names)
     message = (

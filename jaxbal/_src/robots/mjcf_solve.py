@@ -120,9 +120,6 @@ def _valid(robot, q, converged):
     return converged & ~jnp.any(out_of_range(robot, q))
 
 
-_NOT_ASSEMBLED = "loop closure does not converge (not assemblable, or singular) for"
-
-
 def closure(robot, q_independent, guess=None, *, return_valid: bool = False):
     """All coordinates ``q (dof,)`` from the independent ones (loop closure).
 
@@ -151,7 +148,7 @@ def closure(robot, q_independent, guess=None, *, return_valid: bool = False):
     q, converged = _closure(robot, q_independent, start)
     if return_valid:
         return q, _valid(robot, q, converged)
-    message = f"{_NOT_ASSEMBLED} q_independent"
+    message = "loop closure does not converge (not assemblable, or singular) for q_independent"
     return _checked(robot, q, converged, q_independent, message, "loop closure")  # jit too
 
 
