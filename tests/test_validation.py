@@ -73,6 +73,10 @@ def test_non_finite_state_and_scalar_gravity_are_refused():
         jaxbal.shaking_wrench(robot, jnp.array([jnp.nan, 0.0]), jnp.ones(2), jnp.ones(2))
     with pytest.raises(ValueError, match="gravity must have shape"):
         jaxbal.shaking_wrench(robot, jnp.ones(2), jnp.ones(2), jnp.ones(2), gravity=-9.81)
+    # a parameter set to a Python number with tree_at: a TypeError from inside the physics
+    loose = eqx.tree_at(lambda r: r.payload, robot, 1.0)
+    with pytest.raises(ValueError, match=r"PlanarArm.payload is a Python number \(1.0\)"):
+        jaxbal.shaking_wrench(loose, jnp.ones(2), jnp.ones(2), jnp.ones(2))
     # a NaN gravity was reported as an overflow of the robot's largest parameter
     for function in (jaxbal.shaking_wrench, jaxbal.actuator_torques, jaxbal.inverse_dynamics):
         with pytest.raises(ValueError, match=r"gravity must be finite \[m/s\^2\]"):
