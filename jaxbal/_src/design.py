@@ -260,9 +260,7 @@ def codesign(
         raise ValueError(f"motion q must have shape (t, {robot.dof}), got {motion.q.shape}")
     # a closed chain's motion off its loops (held while a length changed): its compiled,
     # callback-free programs did not see it and optimised the wrong mechanism
-    states = [np.asarray(x) for x in (motion.q, motion.qd, motion.qdd)]
-    if all(np.all(np.isfinite(x)) for x in states):  # else named by the state check
-        check_samples_eagerly(robot, *states)
+    check_samples_eagerly(robot, motion.q, motion.qd, motion.qdd)
     terms, weights = _objective_terms(objective)
     constraints = dict(constraints or {})
     constrained = tuple(constraints)

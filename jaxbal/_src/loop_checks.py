@@ -94,8 +94,11 @@ def _excesses(robot: Robot, q, qd, qdd):
 def check_samples_eagerly(robot: Robot, q, qd, qdd) -> None:
     """Raise ``ValueError`` naming the samples (rows of the ``(t, dof)`` states) of a
     closed chain that are off its loops, with their relative residuals (one program
-    compiled per robot structure and sample count)."""
+    compiled per robot structure and sample count). Non-finite states are left to the
+    state check, which names them."""
     if not has_loops(robot):
+        return
+    if not all(np.all(np.isfinite(np.asarray(x))) for x in (q, qd, qdd)):
         return
     excess = np.asarray(_excesses(robot, q, qd, qdd))
     bad = np.flatnonzero(~(excess <= 1.0))  # the states are finite (checked before)

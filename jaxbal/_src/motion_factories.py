@@ -39,9 +39,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.momentum import body_com_positions
 from jaxbal._src.motion_samples import JerkMotion, Motion
-from jaxbal._src.planning import JOIN_TOLERANCE, EndEffectorLine, com_line
+from jaxbal._src.planning import JOIN_TOLERANCE, EndEffectorLine, body_gap, com_line
 from jaxbal._src.profiles import BoundaryPolynomial, TrapezoidalAcceleration
 from jaxbal._src.robot import Robot
 from jaxbal._src.robot_checks import check_robot
@@ -101,24 +100,21 @@ def _joins(robot: Robot, motion, q_start, q_end, last: int):
     """``motion``, guarded by starting at ``q_start`` and ending at ``q_end`` (the same
     body positions, so angles differing by 2π agree): a COM inverse kinematics on
     another branch than these configurations' would make the move jump."""
-
-    def gap(q, target):
-        bodies = body_com_positions(robot, q) - body_com_positions(robot, target)
-        return jnp.max(jnp.abs(bodies))
-
-    gaps = jnp.stack([gap(motion.q[0], q_start), gap(motion.q[last], q_end)])
+    gaps = jnp.stack(
+        [body_gap(robot, motion.q[0], q_start), body_gap(robot, motion.q[last], q_end)]
+    )
     message = (
         "ComTrapezoid: the COM plan does not start at q_start / end at q_end [m]; give "
         "the branch of the COM inverse kinematics these configurations are on (or the "
         "design nearly balances the force: its COM barely moves, so no COM plan joins them)"
     )
-    joins = jnp.all(gaps <= JOIN_TOLERANCE)
+    ok = gaps <= JOIN_TOLERANCE
     # with the runtime checks off (a co-design's compiled programs) a motion that does
     # not join is NaN, so an optimiser sees an invalid design: a force-balancing design
     # fixes the COM, and the finite motion of its degenerate COM plan was optimised and
     # reported as the move's
-    motion = jax.tree.map(lambda x: jnp.where(joins, x, jnp.nan), motion)
-    return guard(motion, ~(gaps <= JOIN_TOLERANCE), message, gaps)
+    motion = jax.tree.map(lambda x: jnp.where(jnp.all(ok), x, jnp.nan), motion)
+    return guard(motion, ~ok, message, gaps)
 
 
 def check_planned(robot: Robot, factory, theta, payloads) -> None:

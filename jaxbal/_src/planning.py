@@ -156,14 +156,14 @@ def join_gaps(plan: ComLine, q_start, q_end):
     reachable."""
     ends = jnp.stack([jnp.zeros(()), plan.line.duration])
     q, valid = jax.vmap(lambda t: plan._solve(t, True))(ends)
-
-    def gap(a, b):
-        return jnp.max(
-            jnp.abs(body_com_positions(plan.robot, a) - body_com_positions(plan.robot, b))
-        )
-
-    gaps = jnp.stack([gap(q[0], q_start), gap(q[1], q_end)])
+    gaps = jnp.stack([body_gap(plan.robot, q[0], q_start), body_gap(plan.robot, q[1], q_end)])
     return jnp.where(valid, gaps, jnp.inf)
+
+
+def body_gap(robot: Robot, q, target):
+    """Largest distance [m] between the bodies' COMs at ``q`` and at ``target`` (angles
+    differing by 2π agree): how far a COM plan is from a configuration."""
+    return jnp.max(jnp.abs(body_com_positions(robot, q) - body_com_positions(robot, target)))
 
 
 def _check_joins(plan: ComLine, q_start, q_end) -> None:
