@@ -58,18 +58,19 @@ def held(u):
     return jnp.where(u > 1.0, 1.0, jnp.where(u < 0.0, 0.0, u))
 
 
+def checked_duration(duration, what: str):
+    """``duration`` [s] as a float array, guarded by being finite and ``> 0`` (eagerly a
+    ``ValueError`` naming it, under ``jit`` a runtime error)."""
+    duration = jnp.asarray(duration, dtype=float)
+    invalid = ~(jnp.isfinite(duration) & (duration > 0))
+    return guard(duration, invalid, f"{what} duration must be finite and > 0 [s]", duration)
+
+
 def normalised_time(t, duration, what: str):
-    """``u = t / T`` of a move of ``duration`` ``T`` [s], guarded by ``T`` finite and
-    ``> 0`` where it is used, so that a duration changed by ``eqx.tree_at`` or an
-    optimiser is checked too (eagerly a ``ValueError`` naming ``T``, under ``jit`` a
-    runtime error; ``T = 0`` gave ``u = ±inf``, the end pose held at every time)."""
-    duration = guard(
-        duration,
-        ~(jnp.isfinite(duration) & (duration > 0)),
-        f"{what} duration must be finite and > 0 [s]",
-        duration,
-    )
-    return jnp.asarray(t, dtype=float) / duration
+    """``u = t / T`` of a move of ``duration`` ``T`` [s], ``T`` checked where it is used
+    (:func:`checked_duration`), so that a duration changed by ``eqx.tree_at`` or an
+    optimiser is checked too (``T = 0`` gave ``u = ±inf``, the end pose at every time)."""
+    return jnp.asarray(t, dtype=float) / checked_duration(duration, what)
 
 
 def _checked_time(profile, u, value):

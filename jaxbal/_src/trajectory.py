@@ -17,9 +17,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.callables import as_pytree
-from jaxbal._src.profiles import Profile, normalised_time
+from jaxbal._src.profiles import Profile, checked_duration, normalised_time
 from jaxbal._src.types import Array, Float, ScalarLike
-from jaxbal._src.validation import checked_call, guard
+from jaxbal._src.validation import checked_call
 
 
 def time_derivatives(path: Callable, t: ScalarLike, order: int = 2) -> tuple:
@@ -69,10 +69,7 @@ def sample_times(duration: ScalarLike, count: int = 1001) -> Float[Array, " t"]:
     runtime error: ``sample_times(0.0)`` gave instants all zero, a peak force of 0 N)."""
     if isinstance(count, bool) or not isinstance(count, int | np.integer) or count < 2:
         raise ValueError(f"count must be an integer >= 2 (both ends of the move), got {count!r}")
-    duration = jnp.asarray(duration, dtype=float)
-    message = "sample_times: duration must be finite and > 0 [s]"
-    duration = guard(duration, ~(jnp.isfinite(duration) & (duration > 0)), message, duration)
-    return jnp.linspace(0.0, 1.0, count) * duration
+    return jnp.linspace(0.0, 1.0, count) * checked_duration(duration, "sample_times:")
 
 
 class StraightLine(eqx.Module):
