@@ -93,3 +93,33 @@ def test_a_singular_start_takes_a_damped_step_and_converges():
     # a Jacobian that vanishes (x² = 2 from x = 0) gives no direction: still refused
     solve = newton_solve(lambda x, p: x**2 - p, jnp.zeros(1), jnp.array([2.0]), throw=False)
     assert not bool(solve.converged)
+
+
+def _arctan(x, p):
+    return jnp.arctan(x - p)
+
+
+def _plain_newton(x, p, steps):
+    # the undamped iteration x <- x - (1 + (x - p)²) atan(x - p), in numpy
+    for _ in range(steps):
+        x = x - (1.0 + (x - p) ** 2) * np.arctan(x - p)
+    return x
+
+
+def test_a_far_start_is_globalised_by_step_halving():
+    """atan(x - p) = 0 from 1.5 away: plain Newton overshoots further at every step and
+    diverges (|x| > 1e6 after 6 steps, checked here in numpy); with step halving the
+    solve converges to the root p, alone and batched next to a near start."""
+    p = jnp.asarray(0.25)
+    assert abs(_plain_newton(1.75, 0.25, 6)) > 1e6
+    far = newton_solve(_arctan, jnp.array([1.75]), p)
+    assert bool(far.converged)
+    np.testing.assert_allclose(np.asarray(far.value), [0.25], atol=1e-12)
+    starts = jnp.array([[1.75], [0.3]])
+    both = jax.vmap(lambda x: newton_solve(_arctan, x, p, throw=False))(starts)
+    assert bool(jnp.all(both.converged))
+    np.testing.assert_allclose(np.asarray(both.value), 0.25, atol=1e-12)
+    # the derivative is still the implicit one: dx/dp = 1
+    np.testing.assert_allclose(
+        float(jax.grad(lambda p: newton_solve(_arctan, jnp.array([1.75]), p).value[0])(p)), 1.0
+    )

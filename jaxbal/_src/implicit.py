@@ -2,7 +2,9 @@
 
 :func:`newton_solve` solves ``residual(x, params) = 0`` for ``x`` by Newton's method
 (Jacobian by ``jax.jacfwd``, a dense linear solve per step, a fixed iteration cap in a
-``lax.while_loop``) and differentiates the solution *implicitly*:
+``lax.while_loop``), globalised by step halving: a step that does not lower ``‖r‖∞``
+enough (Armijo's test) is halved and tried again, so a start far from the root does not
+jump to a singularity and diverge. It differentiates the solution *implicitly*:
 
     dx = -(∂r/∂x)⁻¹ · (∂r/∂params · dparams)
 
@@ -27,7 +29,8 @@ References:
     Krantz & Parks (2002), *The Implicit Function Theorem*; Blondel et al. (2022),
     "Efficient and modular implicit differentiation", NeurIPS; Yamashita & Fukushima
     (2001), "On the rate of convergence of the Levenberg-Marquardt method",
-    Computing Suppl. 15 (the step at a singular Jacobian).
+    Computing Suppl. 15 (the step at a singular Jacobian); Nocedal & Wright (2006),
+    *Numerical Optimization*, §3.1 and §11.2 (sufficient decrease, step halving).
 """
 
 from __future__ import annotations
@@ -44,6 +47,8 @@ from jaxbal._src.types import Array, Float
 from jaxbal._src.validation import is_traced, runtime_checks
 
 __all__ = ["RootSolution", "newton_solve"]
+
+ARMIJO = 1e-4  # sufficient decrease of a (scaled) Newton step, Nocedal & Wright §3.1
 
 
 class RootSolution(eqx.Module):
@@ -88,17 +93,28 @@ def _newton_stack(residual, tol, max_steps, axes):
             return jnp.max(jnp.abs(res(x, params)), axis=-1)
 
         def cond(state):
-            step, _, norm = state
+            step, _, norm, _ = state
             return (step < max_steps) & jnp.any(norm > tol)
 
         def body(state):
-            step, x, norm = state
+            step, x, norm, scale = state
             active = norm > tol  # False for a converged or a non-finite problem
-            dx = _step(jac(x, params), res(x, params))
-            x_new = jnp.where(active[:, None], x - dx, x)
-            return step + 1, x_new, jnp.where(active, norms(x_new), norm)
+            trial = x - scale[:, None] * _step(jac(x, params), res(x, params))
+            trial_norm = norms(trial)
+            # a step that does not lower the residual by a fraction of what Newton
+            # predicts (Armijo's test on ‖r‖∞), or leaves it non-finite, is refused and
+            # halved: a full step from far away can jump to near a singularity and
+            # diverge (an arm drawn through its base, to q ~ 1e16)
+            accept = active & (trial_norm <= (1.0 - ARMIJO * scale) * norm)
+            return (
+                step + 1,
+                jnp.where(accept[:, None], trial, x),
+                jnp.where(accept, trial_norm, norm),
+                jnp.where(accept, 1.0, jnp.where(active, scale / 2, scale)),
+            )
 
-        _, x, _ = jax.lax.while_loop(cond, body, (jnp.asarray(0), xs, norms(xs)))
+        start = (jnp.asarray(0), xs, norms(xs), jnp.ones(xs.shape[:1], xs.dtype))
+        _, x, _, _ = jax.lax.while_loop(cond, body, start)
         return x
 
     @solve.def_vmap
@@ -209,7 +225,7 @@ def newton_solve(
         x0: ``(k,)`` initial guess (not differentiated).
         params: any pytree of arrays.
         tol: convergence threshold on ``‖residual‖∞`` (units of the residual).
-        max_steps: Newton iteration cap.
+        max_steps: iteration cap (a refused, halved step counts as an iteration).
         throw: raise ``ValueError`` eagerly when not converged (ignored under tracing,
             where the ``converged`` flag must be used).
         what: a short description used in the error message.
