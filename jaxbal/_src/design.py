@@ -74,6 +74,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.design_compiled import COMPILED_MAX_VARIABLES, compiled_function
+from jaxbal._src.design_inputs import check_constraints, check_penalty, starts_inside
 from jaxbal._src.design_loss import (
     SCALE_FLOOR,
     START_OFFSET,
@@ -105,7 +106,6 @@ from jaxbal._src.metrics import (
     check_design_names,
     finite_array,
     metric_name,
-    resolve_metric,
 )
 from jaxbal._src.motion_samples import ReducedMotion
 from jaxbal._src.optimize import minimize
@@ -126,8 +126,6 @@ __all__ = [
 
 #: default weight ``P`` of the quadratic constraint penalty (dimensionless).
 CONSTRAINT_PENALTY = 1e4
-#: a start this far outside a bound (relative, at least absolute) is rounding: clipped.
-BOUND_RTOL = 1e-12
 
 
 def _codesign_compact(robot, motion, x0, problem: _Problem, max_steps, gtol, reduce):
@@ -262,23 +260,8 @@ def codesign(
     # callback-free programs did not see it and optimised the wrong mechanism
     check_samples_eagerly(robot, motion.q, motion.qd, motion.qdd)
     terms, weights = _objective_terms(objective)
-    constraints = dict(constraints or {})
-    constrained = tuple(constraints)
-    for metric in constrained:
-        resolve_metric(metric)
-    bounds = np.array([float(b) for b in constraints.values()])
-    if not np.all(np.isfinite(bounds)):
-        raise ValueError(f"constraint bounds must be finite, got {constraints}")
-    # Every named metric is >= 0 (norms, masses): a negative budget cannot be met and
-    # was silently returned as feasible=False after a full optimisation.
-    for metric, bound in zip(constrained, bounds, strict=True):
-        if isinstance(metric, str) and bound < 0:
-            raise ValueError(
-                f"constraints[{metric!r}] = {bound!r} is negative: the metric is >= 0, "
-                "so the budget cannot be met"
-            )
-    if not (np.isfinite(float(penalty)) and float(penalty) >= 0):
-        raise ValueError(f"penalty must be finite and >= 0, got {penalty!r}")
+    constrained, bounds = check_constraints(constraints)
+    check_penalty(penalty)
     check_stopping(max_steps, gtol)
 
     design = robot.design()
@@ -297,25 +280,7 @@ def codesign(
     robot = robot.with_design(start)
     x0 = {name: finite_array(f"start value of {name!r}", robot.design()[name]) for name in free}
     lows, highs, two_sided = _bounds(robot, free, lower, upper)
-    for name, lo, hi, two in zip(free, lows, highs, two_sided, strict=True):
-        lo, hi = np.asarray(lo), np.asarray(hi) if two else np.inf
-        # a design read back from a robot (e.g. a solution's, as the next start) may sit
-        # a rounding error outside a bound it reached: accepted, and clipped onto it
-        slack = BOUND_RTOL * np.maximum(1.0, np.abs(x0[name]))
-        outside = (x0[name] < lo - slack) | (x0[name] > hi + slack)
-        if np.any(outside):
-            where = [tuple(int(i) for i in k) for k in np.argwhere(outside)][:4]
-            listed = ", ".join(
-                f"[{', '.join(map(str, k))}] = {float(np.asarray(x0[name])[k]):.6g} not in "
-                f"[{float(np.broadcast_to(lo, outside.shape)[k]):.6g}, "
-                f"{float(np.broadcast_to(hi, outside.shape)[k]):.6g}]"
-                for k in where
-            )
-            raise ValueError(
-                f"start of {name!r} lies outside its bounds ({int(outside.sum())} entries): "
-                f"{listed}; pass start= inside lower=/upper="
-            )
-        x0[name] = np.clip(x0[name], lo, hi)
+    x0 = starts_inside(x0, lows, highs, two_sided)
 
     everything = terms + tuple(m for m in constrained if m not in terms)
     where = np.asarray([everything.index(m) for m in constrained], dtype=int)

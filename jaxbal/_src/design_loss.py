@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.config import compiler_options
+from jaxbal._src.design_inputs import check_lower_bounds
 from jaxbal._src.metrics import (
     ADDED_MASS_VARIABLES,
     Motion,
@@ -343,6 +344,7 @@ def _bounds(robot, free, lower, upper):
         lows.append(np.asarray(lo, dtype=float))
         highs.append(np.asarray(hi, dtype=float))
         two_sided.append(bool(two))
+    check_lower_bounds(robot, free, lows)
     return tuple(lows), tuple(highs), tuple(two_sided)
 
 

@@ -37,6 +37,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._src import design_inputs as inputs
 from jaxbal._src.base_vibration_metric import refuse_rescaled_times
 from jaxbal._src.design import CONSTRAINT_PENALTY, FEASIBILITY_RTOL
 from jaxbal._src.design_loss import (
@@ -53,7 +54,7 @@ from jaxbal._src.design_loss import (
 )
 from jaxbal._src.design_solution import _contacts, bound_contacts
 from jaxbal._src.lbfgs import lbfgs
-from jaxbal._src.metrics import Motion, check_design_names, metric_name, resolve_metric
+from jaxbal._src.metrics import Motion, check_design_names, finite_array, metric_name
 from jaxbal._src.momentum import replayed
 from jaxbal._src.motion_factories import check_planned
 from jaxbal._src.optimize import minimize
@@ -192,11 +193,14 @@ def _trajectory_problem(trajectory, lower, upper) -> _Problem:
         raise ValueError(f"trajectory bounds must name exactly {sorted(names)}")
     lows, highs = [], []
     for name in names:
-        x = np.asarray(trajectory[name], float)
-        lo = np.broadcast_to(np.asarray(lower[name], float), x.shape)
-        hi = np.broadcast_to(np.asarray(upper[name], float), x.shape)
+        x = finite_array(f"trajectory[{name!r}]", trajectory[name])
+        lo = np.broadcast_to(finite_array(f"trajectory_lower[{name!r}]", lower[name]), x.shape)
+        hi = np.broadcast_to(finite_array(f"trajectory_upper[{name!r}]", upper[name]), x.shape)
         if not np.all(hi > lo) or np.any(x < lo) or np.any(x > hi):
-            raise ValueError(f"trajectory {name!r}: need lower < upper and start inside")
+            raise ValueError(
+                f"trajectory {name!r}: need lower < upper and the start inside, got "
+                f"lower {lo.tolist()}, start {x.tolist()}, upper {hi.tolist()}"
+            )
         lows.append(jnp.asarray(lo))
         highs.append(jnp.asarray(hi))
     empty = jnp.zeros(0)
@@ -241,7 +245,7 @@ def joint_codesign(
         payloads: ``(n,)`` payloads [kg] the metrics are aggregated over (default: the
             robot's own).
         robust: ``"mean"`` (expected value over the payload grid) or ``"max"``.
-        sharpness: ``k`` of the smooth maximum.
+        sharpness: ``k > 0`` of the smooth maximum.
         constraints: ``{metric: bound}`` held at the worst payload.
         penalty: weight of the quadratic constraint penalty.
         scales: optional fixed scale per objective metric name (default: its value at
@@ -254,15 +258,13 @@ def joint_codesign(
             solver's accuracy; they stop early once every constraint holds to
             :data:`CONSTRAINT_RTOL` of its bound.
     """
-    if robust not in ("mean", "max"):
-        raise ValueError(f"robust must be 'mean' or 'max', got {robust!r}")
+    inputs.check_robust(robust, sharpness)
     check_stopping(max_steps, gtol)
+    inputs.check_rounds(rounds)
+    inputs.check_penalty(penalty)
     terms, weights = _objective_terms(objective)
-    constraints = dict(constraints or {})
-    constrained = tuple(constraints)
-    for metric in constrained:
-        resolve_metric(metric)
-    bounds = jnp.asarray([float(b) for b in constraints.values()], dtype=float)
+    constrained, bounds = inputs.check_constraints(constraints)
+    bounds = jnp.asarray(bounds)
     design = robot.design()
     if free is None:
         free = tuple(name for name in design if name != "payload")
@@ -271,10 +273,11 @@ def joint_codesign(
     check_robot(robot)  # an invalid robot is refused before anything compiles
     if payloads is None:
         payloads = jnp.atleast_1d(design.get("payload", jnp.zeros(())))
-    payloads = jnp.asarray(payloads, dtype=float).reshape(-1)
+    payloads = jnp.asarray(inputs.check_payloads(payloads))
     theta_problem = _trajectory_problem(trajectory, trajectory_lower, trajectory_upper)
     theta0 = {k: jnp.asarray(v, float) for k, v in trajectory.items()}
     lows, highs, two_sided = _bounds(robot, free, lower, upper)
+    inputs.starts_inside({k: robot.design()[k] for k in free}, lows, highs, two_sided)
     everything = terms + tuple(m for m in constrained if m not in terms)
     refuse_rescaled_times(everything, theta0)
     columns = [(terms + constrained).index(m) for m in everything]
@@ -383,11 +386,7 @@ def joint_codesign(
         history=np.asarray(history),
         at_bound=_contacts(optimised, problem),
         trajectory_at_bound=bound_contacts(
-            theta,
-            theta_problem.free,
-            theta_problem.lower,
-            theta_problem.upper,
-            theta_problem.two_sided,
+            theta, *(getattr(theta_problem, k) for k in ("free", "lower", "upper", "two_sided"))
         ),  # fmt: skip
     )
 

@@ -140,8 +140,8 @@ def multistart_joint_codesign(
         starts: number of random starts besides the given and extra ones (≥ 0).
         seed: seed of the random starts (NumPy ``default_rng``).
         extra_starts: further starts, each a ``JointSolution`` or a mapping
-            ``{"trajectory": θ, "design": {...}}`` (design variables not named are the
-            given start's).
+            ``{"trajectory": θ, "design": {...}}``; only its *free* design variables are
+            taken, the others (and the payload) are the given start's.
         near_rtol: relative loss margin of the near-optimal starts (> 0).
         scales: fixed scales of the objective metrics (default: their mean over the
             payloads at the given start), the same for every start.
@@ -170,7 +170,10 @@ def multistart_joint_codesign(
     lows, highs, two = _bounds(given, free, lower, upper)
     rng = np.random.default_rng(seed)
     plan = [("given", (dict(trajectory), {}))]
-    plan += [("extra", _as_start(e)) for e in extra_starts]
+    # only the free variables of an extra start: the others (e.g. a solution's payload
+    # or a variable the smaller problem freed) are the given start's, as for every start
+    plan += [("extra", (t, {k: d[k] for k in free if k in d}))
+             for t, d in map(_as_start, extra_starts)]  # fmt: skip
     randoms = _random_starts(rng, starts, trajectory, trajectory_lower, trajectory_upper,
                              design, free, lows, highs, two)  # fmt: skip
     plan += [("random", s) for s in randoms]

@@ -23,9 +23,10 @@ from typing import Any, NamedTuple
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 import optax
 
-from jaxbal._src.validation import check_stopping
+from jaxbal._src.validation import check_stopping, is_traced
 
 
 class Solution(NamedTuple):
@@ -75,10 +76,19 @@ def minimize(
         args: extra pytree arguments of ``loss`` (data; not optimised).
 
     Raises:
-        ValueError: ``max_steps`` not an integer ``>= 1``, or ``gtol`` not a finite
-            number ``>= 0``.
+        ValueError: ``max_steps`` not an integer ``>= 1``, ``gtol`` not a finite
+            number ``>= 0``, or a (concrete) starting parameter that is not a finite
+            float array.
     """
     check_stopping(max_steps, gtol)
+    for path, leaf in jax.tree_util.tree_flatten_with_path(params)[0]:
+        if is_traced(leaf):
+            continue
+        value, name = np.asarray(leaf), f"params{jax.tree_util.keystr(path)}"
+        if not np.issubdtype(value.dtype, np.floating):
+            raise ValueError(f"{name} must be a float array, got dtype {value.dtype}")
+        if not np.all(np.isfinite(value)):  # the loop ran, and returned NaN
+            raise ValueError(f"{name} must be finite, got {value!r}")
     optimizer = _DEFAULT_OPTIMIZER if optimizer is None else optimizer
     return _run(loss, optimizer, _is_lbfgs(optimizer), max_steps, gtol, params, args)
 

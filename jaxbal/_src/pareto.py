@@ -85,6 +85,25 @@ def dominance(values, rtol: float = 1e-9) -> np.ndarray:
     return no_worse & better
 
 
+def _checked_front(metrics, weights) -> tuple[tuple, np.ndarray]:
+    """``(a, b)`` and the weights ``(n,)``, or ``ValueError``: two different metrics
+    (one metric twice was a single objective whose ``w = 0`` point was the start), and
+    at least one weight, each in ``[0, 1]``, increasing."""
+    metrics = tuple(metrics)
+    if len(metrics) != 2 or metric_name(metrics[0]) == metric_name(metrics[1]):
+        names = [metric_name(m) for m in metrics]
+        raise ValueError(f"metrics must be two different metrics (a, b), got {names}")
+    values = np.asarray(weights, dtype=float)
+    if values.ndim != 1 or values.size == 0:
+        raise ValueError(f"weights must be a sequence of at least one w in [0, 1], got {weights!r}")
+    if not (np.all(np.isfinite(values)) and np.all((values >= 0) & (values <= 1))):
+        raise ValueError(f"every weight w of b must lie in [0, 1], got {values.tolist()}")
+    if np.any(np.diff(values) <= 0):
+        raise ValueError(f"weights must increase (each point starts from the one before), "
+                         f"got {values.tolist()}")  # fmt: skip
+    return metrics, values
+
+
 def _scales(robot, motion, trajectory, metrics, options) -> dict[str, float]:
     """Fixed scale of each metric along the front: its worst (``robust="max"``) or mean
     value over the payloads at the start, floored as in :func:`joint_codesign`."""
@@ -115,17 +134,21 @@ def pareto_front(
     Args:
         robot, motion, trajectory: as :func:`~jaxbal.design.joint_codesign`.
         metrics: the two metrics ``(a, b)``.
-        weights: increasing weights ``w ∈ [0, 1]`` of ``b``.
+        weights: increasing weights ``w ∈ [0, 1]`` of ``b`` (at least one).
         start: starting design of the first solve.
         repair: passes that re-solve each dominated point from a dominating one.
-        **options: passed on (bounds, ``free``, ``payloads``, ``robust``, constraints…).
+        **options: passed on (bounds, ``free``, ``payloads``, ``robust``, constraints…);
+            ``scales`` (by metric name) replaces the scale taken at the start.
 
     Returns:
         A :class:`ParetoFront` (the solution at ``w`` starts from the one before).
     """
+    metrics, weights = _checked_front(metrics, weights)
     a, b = metrics
-    weights = np.asarray(weights, dtype=float)
+    given = options.pop("scales", None)
     scales = _scales(robot.with_design(dict(start or {})), motion, trajectory, metrics, options)
+    scales.update({metric_name(m): float(given[metric_name(m)])
+                   for m in metrics if metric_name(m) in (given or {})})  # fmt: skip
     free = options.pop("free", None)
     names = free if free is not None else [n for n in robot.design() if n != "payload"]
 

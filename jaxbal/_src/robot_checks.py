@@ -89,6 +89,20 @@ def _faulty(robot: Robot):
     return robot_faulty(robot)
 
 
+def check_leaves(robot: Robot) -> None:
+    """Refuse a robot parameter that is a Python number, not an array (``eqx.tree_at(
+    lambda r: r.payload, arm, 1.0)``): the physics indexed it, a ``TypeError: 'float'
+    object is not subscriptable``. At trace time, nothing in the compiled program."""
+    leaves, _ = jax.tree_util.tree_flatten_with_path(robot)
+    for path, leaf in leaves:
+        if isinstance(leaf, int | float | complex) and not isinstance(leaf, bool):
+            name = type(robot).__name__ + jax.tree_util.keystr(path)
+            raise ValueError(
+                f"robot parameter {name} is a Python number ({leaf!r}), not an array: "
+                f"set arrays, e.g. eqx.tree_at(..., jnp.asarray({leaf!r}))"
+            )
+
+
 def check_robot(robot: Robot) -> None:
     """Raise ``ValueError`` naming the values where :func:`checked_bodies` or
     :func:`checked_parameters` would reject ``robot`` (an eager call: the entry points
@@ -97,6 +111,7 @@ def check_robot(robot: Robot) -> None:
     took 1–1.6 s), the checks that name the values run only when it is set. Under a
     trace (``jit``, ``vmap``, ``grad``) it does nothing: the traced physics guards the
     robot itself."""
+    check_leaves(robot)  # before tracing: a Python number is static to filter_jit
     faulty = _faulty(robot)
     if isinstance(faulty, jax.core.Tracer):
         return

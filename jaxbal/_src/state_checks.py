@@ -5,7 +5,6 @@ compiled code."""
 
 from __future__ import annotations
 
-import jax
 import jax.numpy as jnp
 import numpy as np
 
@@ -13,6 +12,7 @@ from jaxbal._src.loop_checks import MESSAGE as LOOP_MESSAGE
 from jaxbal._src.loop_checks import check_loops_eagerly, closure_excess
 from jaxbal._src.motion import has_loops
 from jaxbal._src.robot import Robot
+from jaxbal._src.robot_checks import check_leaves
 from jaxbal._src.validation import (
     _under_trace,
     check_shape,
@@ -82,7 +82,7 @@ def state_check(robot: Robot, q, qd, qdd, loops: bool = False, gravity=None):
     q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
     for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
         check_shape(name, value, (robot.dof,))
-    _check_leaves(robot)
+    check_leaves(robot)
     concrete = not is_traced(q, qd, qdd)
     if concrete:  # concrete (even inside a jit): checked in NumPy now
         state = np.stack([np.asarray(q), np.asarray(qd), np.asarray(qdd)])
@@ -91,20 +91,6 @@ def state_check(robot: Robot, q, qd, qdd, loops: bool = False, gravity=None):
         g = np.asarray(gravity, dtype=float)
         guard(None, ~np.isfinite(g), "gravity must be finite [m/s^2]", g)
     return q, qd, qdd, StateCheck(robot, (q, qd, qdd), concrete, loops)
-
-
-def _check_leaves(robot: Robot) -> None:
-    """Refuse a robot parameter that is a Python number, not an array (``eqx.tree_at(
-    lambda r: r.payload, arm, 1.0)``): the physics indexed it, a ``TypeError: 'float'
-    object is not subscriptable``. At trace time, nothing in the compiled program."""
-    leaves, _ = jax.tree_util.tree_flatten_with_path(robot)
-    for path, leaf in leaves:
-        if isinstance(leaf, int | float | complex) and not isinstance(leaf, bool):
-            name = type(robot).__name__ + jax.tree_util.keystr(path)
-            raise ValueError(
-                f"robot parameter {name} is a Python number ({leaf!r}), not an array: "
-                f"set arrays, e.g. eqx.tree_at(..., jnp.asarray({leaf!r}))"
-            )
 
 
 def checked_state(robot: Robot, q, qd, qdd):
