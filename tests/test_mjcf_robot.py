@@ -882,3 +882,69 @@ def test_four_bar_tree_on_a_fixed_frame_with_a_world_connect():
             np.testing.assert_allclose(rotations[k].ravel(), data.body(name).xmat, atol=1e-12)
         if q is robot.reference:
             assert data.nefc == 3 and np.max(np.abs(data.efc_pos)) < 1e-12
+
+
+def test_ik_from_a_far_reference_does_not_pass_through_the_base():
+    """A revolute–slide arm (tip at radius 0.3 + s, angle j1) asked for a tip straight
+    up from its reference q = 0 (tip along x). A full Newton step lands the tip near the
+    base (radius ~ 1e-6), a near-singularity from which plain Newton threw j1 to
+    ~ -3e16 rad or ~ 5e4 rad; with step halving the inverse kinematics converges to the
+    closed form j1 = atan2(y, x), s = |p| - 0.3."""
+    xml = (
+        '<mujoco><worldbody><body name="l1"><joint name="j1" axis="0 0 1"/>'
+        f"{_link(0.1, 1.0)}"
+        '<body name="l2" pos="0.2 0 0"><joint name="s2" type="slide" axis="1 0 0"/>'
+        f'{_link(0.05, 1.0)}<site name="tip" pos="0.1 0 0"/></body></body>'
+        "</worldbody></mujoco>"
+    )
+    robot = from_mjcf(xml)
+    for target in ([0.0, 0.35], [2.95518e-06, 0.349996552]):
+        q, valid = robot.inverse_kinematics(jnp.array(target), return_valid=True)
+        assert bool(valid)
+        expected = [np.arctan2(target[1], target[0]), np.hypot(*target) - 0.3]
+        np.testing.assert_allclose(np.asarray(q), expected, atol=1e-10)
+
+
+@pytest.mark.parametrize(
+    "attributes, named",
+    [
+        ('damping="2"', "damping 2"),
+        ('stiffness="30" springref="0.5"', "stiffness 30"),
+        ('frictionloss="1.5"', "frictionloss 1.5"),
+    ],
+)
+def test_passive_joint_forces_are_refused_unless_ignored(attributes, named, tmp_path):
+    """Joint damping, a spring or friction loss change the torques the motors must give
+    (MuJoCo's ``qfrc_inverse`` differs from the inertial torques by them) but not the
+    base reaction. jaxbal's torques leave them out, so a file with them is refused by
+    ``from_mjcf`` and ``jaxbal balance``, unless ignored: the wrench is then that of the
+    file without them. Disabled by the option flags, they are not refused."""
+    from jaxbal._src.cli import app
+
+    tip = '<site name="tip" pos="0.2 0 0"/>'
+    xml = _arm(joint=attributes, inside=tip)
+    with pytest.raises(ValueError, match=f"joint 'j2' has {named}: a passive joint force"):
+        from_mjcf(xml, end_effector_site="tip")
+    robot = from_mjcf(xml, ignore_passive=True, end_effector_site="tip")
+    plain = from_mjcf(_arm(inside=tip), end_effector_site="tip")
+    q, qd, qdd = jnp.array([0.3, 1.1]), jnp.array([1.5, -2.0]), jnp.array([4.0, 3.0])
+    for ours, reference in zip(
+        jaxbal.shaking_wrench(robot, q, qd, qdd), jaxbal.shaking_wrench(plain, q, qd, qdd),
+        strict=True,
+    ):  # fmt: skip
+        np.testing.assert_array_equal(ours, reference)
+    # what was left out: MuJoCo's inverse dynamics of the file has the passive force
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:], data.qacc[:] = q, qd, qdd
+    mujoco.mj_inverse(model, data)
+    torques = jaxbal.actuator_torques(robot, q, qd, qdd)
+    assert abs(data.qfrc_inverse[1] - float(torques[1])) > 0.5
+    flags = '<flag damper="disable" spring="disable" frictionloss="disable"/></option>'
+    disabled = xml.replace('<option gravity="0 0 0"/>', f'<option gravity="0 0 0">{flags}', 1)
+    from_mjcf(disabled, end_effector_site="tip")
+    path = tmp_path / "arm.xml"
+    path.write_text(xml)
+    refused = CliRunner().invoke(app, ["balance", str(path), "--site", "tip", "--start",
+                                       "0.3,0.2", "--end", "0.25,0.25"])  # fmt: skip
+    assert refused.exit_code == 2 and "--ignore-passive" in refused.output

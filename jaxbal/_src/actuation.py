@@ -36,8 +36,11 @@ def velocity_basis(robot: Robot, q: Coordinates) -> Float[Array, "dof m"]:
     dependent = np.setdiff1d(np.arange(dof), independent)
     if phi_q.shape[0] != dependent.size:
         raise ValueError(
-            f"{type(robot).__name__}: {phi_q.shape[0]} loop closures for {dependent.size} "
-            "dependent coordinates (they must match)"
+            f"{type(robot).__name__}: {phi_q.shape[0]} constraint equations (loop "
+            "closures; a ball joint's unit quaternion is one) for the "
+            f"{dependent.size} coordinates {dependent.tolist()} that are not independent "
+            "(they must match): a joint neither independent (actuated) nor closed by a "
+            "loop leaves the mechanism underactuated, so its torques are undefined"
         )
     solved = -jnp.linalg.solve(phi_q[:, dependent], phi_q[:, independent])
     basis = jnp.zeros((dof, independent.size))

@@ -139,6 +139,9 @@ def balance(
         "--ignore-armature",
         help="drop joint armature (rotor inertia without a body, e.g. MuJoCo Menagerie arms)",
     ),
+    ignore_passive: bool = typer.Option(
+        False, "--ignore-passive", help="drop joint damping, springs and friction loss"
+    ),
     ik_free: str = typer.Option(
         None,
         "--ik-free",
@@ -219,6 +222,7 @@ def balance(
             end_effector_offset=None if offset is None else _floats(offset, "--offset"),
             ignore_meshes=ignore_meshes,
             ignore_armature=ignore_armature,
+            ignore_passive=ignore_passive,
             keyframe=keyframe,
             ik_free=ik_free,
         )

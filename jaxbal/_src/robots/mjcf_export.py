@@ -137,6 +137,7 @@ def _check_same_wrench(robot: MjcfRobot, path: Path, ignore_meshes: bool) -> Non
             actuated=[joint[q] for q in robot.actuated_coordinates],
             independent=[joint[q] for q in robot.independent_coordinates],
             ignore_armature=True,
+            ignore_passive=True,
             ignore_meshes=ignore_meshes,
         )
     except ValueError as error:

@@ -79,6 +79,7 @@ def from_mjcf(
     ik_free=None,
     payload_body: str | None = None,
     ignore_armature: bool = False,
+    ignore_passive: bool = False,
     keyframe: str | None = None,
     end_effector_body: str | None = None,
     end_effector_offset=None,
@@ -105,6 +106,9 @@ def from_mjcf(
         payload_body: a moving body whose mass is the design variable ``payload``.
         ignore_armature: accept joint armature (MuJoCo's rotor inertia, which has no
             base reaction) and leave it out; by default it is refused.
+        ignore_passive: accept joint damping, springs and friction loss (passive joint
+            forces: no base reaction, but the motors would overcome them) and leave them
+            out of the actuator torques; by default they are refused.
         keyframe: a ``<key>`` of the model whose ``qpos`` is the robot's ``reference``,
             the start of its Newton solves (picks the assembly mode; default: the
             model's ``qpos0``, often an arm drawn straight, a singular configuration).
@@ -131,7 +135,7 @@ def from_mjcf(
         end_effector_offset=end_effector_offset,
     )
     end_effector_site = added or end_effector_site
-    parsed = parse(model, ignore_armature=ignore_armature)
+    parsed = parse(model, ignore_armature=ignore_armature, ignore_passive=ignore_passive)
     moving = tuple(i for i, m in enumerate(parsed.moving) if m)
     kinds = zip(parsed.joint_names, parsed.joint_types, strict=True)
     hinges = tuple(name for name, kind in kinds if kind != "ball")

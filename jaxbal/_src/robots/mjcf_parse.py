@@ -15,8 +15,10 @@ loop closures, joint couplings (gears, URDF mimic joints). Anything else that wo
 change the dynamics (free joints, tendons, weld and tendon equalities, inactive
 equalities, actuators on non-joints or ball joints, mocap bodies,
 flexes, gravity compensation, joint armature) raises a ``ValueError`` naming it:
-nothing is silently dropped. Contacts, limits, damping and springs do not enter the
-inertial base reaction and are ignored.
+nothing is silently dropped. Joint damping, springs and friction loss do not enter the
+base reaction but would change the actuator torques: they are refused too, unless
+``ignore_passive`` (then the torques are those without them). Contacts and joint limits
+do not enter the inertial dynamics and are ignored (the ranges bound the solved joints).
 
 References:
     MuJoCo XML reference, https://mujoco.readthedocs.io/en/stable/XMLreference.html
@@ -125,9 +127,41 @@ def _quat_matrix(quat) -> np.ndarray:
     return matrix.reshape(3, 3)
 
 
-def _refuse_unsupported(model, ignore_armature: bool) -> None:
+def _refuse_passive(model) -> None:
+    """``ValueError`` naming the first joint with a passive force MuJoCo applies (joint
+    damping, a spring, friction loss; the option flags that disable them are honoured):
+    the actuator torques would have to overcome it, jaxbal's leave it out."""
+    import mujoco
+
+    def enabled(flag):
+        bit = getattr(mujoco.mjtDisableBit, flag, None)
+        return bit is None or not model.opt.disableflags & int(bit)
+
+    springs, dampers = enabled("mjDSBL_SPRING"), enabled("mjDSBL_DAMPER")
+    friction = enabled("mjDSBL_FRICTIONLOSS")
+    for d in range(model.nv):
+        j = int(model.dof_jntid[d])
+        forces = {
+            "damping": model.dof_damping[d] if dampers else 0.0,
+            "stiffness": model.jnt_stiffness[j] if springs else 0.0,
+            "frictionloss": model.dof_frictionloss[d] if friction else 0.0,
+        }
+        named = ", ".join(f"{k} {v:g}" for k, v in forces.items() if v != 0)
+        if named:
+            raise ValueError(
+                f"joint {_name(model, 'joint', j, 'joint')!r} has {named}: a passive joint "
+                "force, which changes the actuator torques (not the base reaction) and "
+                "which jaxbal's torques leave out; remove it, or pass ignore_passive=True "
+                "(jaxbal balance: --ignore-passive)"
+            )
+
+
+def _refuse_unsupported(model, ignore_armature: bool, ignore_passive: bool) -> None:
     """``ValueError`` naming the first element jaxbal cannot represent exactly."""
     import mujoco
+
+    if not ignore_passive:
+        _refuse_passive(model)
 
     if model.ntendon:
         names = [_name(model, "tendon", i, "tendon") for i in range(model.ntendon)]
@@ -250,7 +284,7 @@ def _rows(moving: np.ndarray, fixed: np.ndarray) -> tuple[tuple[float, float, fl
     return tuple(tuple(float(v) for v in row) for row in chosen)
 
 
-def parse(model, ignore_armature: bool = False) -> Parsed:
+def parse(model, ignore_armature: bool = False, ignore_passive: bool = False) -> Parsed:
     """Read a compiled ``MjModel`` (see the module docstring).
 
     Raises:
@@ -259,7 +293,7 @@ def parse(model, ignore_armature: bool = False) -> Parsed:
     """
     import mujoco
 
-    _refuse_unsupported(model, ignore_armature)
+    _refuse_unsupported(model, ignore_armature, ignore_passive)
     nb = model.nbody - 1
 
     def body_index(b: int) -> int:
