@@ -20,6 +20,7 @@ from typing import NamedTuple
 import equinox as eqx
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from jaxbal._src.planning import torque_rate_along
 from jaxbal._src.profiles import TrapezoidalAcceleration
@@ -94,14 +95,23 @@ def plan_rate_limited(
             profile). Define it once at module level: compiled code is reused across
             calls with the same ``make_path`` and new ``data``.
         data: pytree of arrays passed to ``make_path`` (endpoints, free-angle law...).
-        duration: motion time T [s].
+        duration: motion time T [s] of the paths ``make_path`` builds: the torque rates
+            are checked at times in ``[0, T]``.
         rate_limit: ``τ̇_max`` [N·m/s], the same for every actuator.
         grid: candidates per axis at each level.
         refinements: number of zoom-in levels around the best feasible candidate.
 
     Raises:
-        ValueError: when no candidate satisfies the limit (the move is too fast).
+        ValueError: a ``duration`` that is not finite and ``> 0``, a ``rate_limit`` that
+            is not finite and ``> 0``, or no candidate satisfying the limit (the move is
+            too fast).
     """
+    # eagerly, before any compilation: T <= 0 sampled the rates at t <= 0 only and
+    # reported a plan "within" the limit whose move broke it 267-fold
+    for name, value in (("duration", duration), ("rate_limit", rate_limit)):
+        number = np.asarray(value, dtype=float)
+        if number.shape != () or not (np.isfinite(number) and number >= np.finfo(float).tiny):
+            raise ValueError(f"plan_rate_limited: {name} must be finite and > 0, got {value!r}")
     duration = jnp.asarray(duration, dtype=float)
 
     # Search in (u1, g) with u2 = 1/2 − g/2, i.e. g = 1 − 2 u2 the length of the middle ramp.
