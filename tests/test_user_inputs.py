@@ -228,6 +228,48 @@ def test_com_line_on_another_branch_than_its_configurations_is_refused():
         jaxbal.planning.com_line(arm, q0, other, BangBang(), 0.5)
 
 
+def test_com_line_on_another_branch_is_refused_under_jit_vmap_and_grad():
+    """Under ``jit``, ``vmap`` or ``grad`` (even with respect to the duration alone) the
+    join check was skipped and the plan ran silently in the other elbow mode (peak
+    moment 4.2 instead of 22.7 N·m); now a runtime error where the plan is evaluated.
+    The joining branch still runs, with the same numbers as eagerly."""
+    arm = jaxbal.robots.planar_2r()
+    q0 = arm.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
+    q1 = arm.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
+    times = jnp.linspace(0.0, 1.0, 51)
+
+    def peak_moment(a, b, duration, branch):
+        plan = jaxbal.planning.com_line(arm, a, b, BangBang(), duration, branch=branch)
+        _, moment = jaxbal.planning.wrench_along(arm, plan, times * duration)
+        return jaxbal.planning.peak_norm(moment)
+
+    eager = float(peak_moment(q0, q1, 0.5, 1))
+    assert float(jax.jit(lambda a, b: peak_moment(a, b, 0.5, 1))(q0, q1)) == pytest.approx(
+        eager, rel=1e-12
+    )
+    assert np.isfinite(float(jax.grad(lambda d: peak_moment(q0, q1, d, 1))(0.5)))
+    wrong = [
+        lambda: jax.jit(lambda a, b: peak_moment(a, b, 0.5, -1))(q0, q1),
+        lambda: jax.vmap(lambda a, b: peak_moment(a, b, 0.5, -1))(q0[None], q1[None]),
+        lambda: jax.grad(lambda d: peak_moment(q0, q1, d, -1))(0.5),
+    ]
+    for call in wrong:
+        with pytest.raises(Exception, match="does not start at q_start / end at q_end"):
+            jax.block_until_ready(call())
+
+
+def test_com_line_with_a_bad_profile_names_it_eagerly():
+    """An invalid trapezoid passed to ``com_line`` eagerly was an
+    ``EquinoxRuntimeError`` without its switch times (the profile alone gave a
+    ``ValueError`` naming them)."""
+    arm = jaxbal.robots.planar_2r()
+    q0 = arm.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
+    q1 = arm.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
+    profile = eqx.tree_at(lambda p: p.u2, TrapezoidalAcceleration(0.1, 0.2), jnp.asarray(0.05))
+    with pytest.raises(ValueError, match=r"switch times.*0\.1.*0\.05"):
+        jaxbal.planning.com_line(arm, q0, q1, profile, 0.5)
+
+
 def test_zero_sample_instants_are_named():
     """``times`` of shape (0,) raised ``ZeroDivisionError: integer modulo by zero``."""
     arm = jaxbal.robots.planar_2r()

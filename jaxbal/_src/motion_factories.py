@@ -40,7 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.motion_samples import JerkMotion, Motion
-from jaxbal._src.planning import JOIN_TOLERANCE, EndEffectorLine, body_gap, com_line
+from jaxbal._src.planning import JOIN_TOLERANCE, EndEffectorLine, body_gap, com_plan
 from jaxbal._src.profiles import BoundaryPolynomial, TrapezoidalAcceleration
 from jaxbal._src.robot import Robot
 from jaxbal._src.robot_checks import check_robot
@@ -244,7 +244,7 @@ class ComTrapezoid(eqx.Module):
                     f"{d} COM coordinates for a free law to steer"
                 )
             free = StraightLine(pose[0], pose[1], BoundaryPolynomial(theta["phi"]), duration)
-        path = com_line(robot, self.q_start, self.q_end, profile, duration, free, self.branch)
+        path = com_plan(robot, self.q_start, self.q_end, profile, duration, free, self.branch)
         return times, profile, path
 
 

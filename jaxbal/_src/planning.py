@@ -37,7 +37,13 @@ from jaxbal._src.profiles import Profile
 from jaxbal._src.robot import Robot
 from jaxbal._src.trajectory import StraightLine, sample
 from jaxbal._src.types import Array, Float, ScalarLike
-from jaxbal._src.validation import check_shape, checked_call, is_traced, raise_if_invalid
+from jaxbal._src.validation import (
+    check_shape,
+    checked_call,
+    guard,
+    is_traced,
+    raise_if_invalid,
+)
 
 
 class EndEffectorLine(eqx.Module):
@@ -59,7 +65,11 @@ class ComLine(eqx.Module):
     """Joint motion that moves the total COM on a straight line with a given profile.
 
     Attributes:
-        robot: the robot (its parameters are leaves: the plan follows them).
+        robot: the robot. Its parameters are leaves, but the COM line's end points
+            (and ``poses``) are computed from it when :func:`com_line` makes the plan:
+            make the plan from the changed robot (e.g. inside the function a sweep or
+            an optimiser calls), not ``eqx.tree_at`` on ``plan.robot`` afterwards,
+            which leaves the line's end points those of the robot before.
         line: the COM path, a :class:`~jaxbal.trajectory.StraightLine` in the plane
             (``(2,)`` endpoints) or in space (``(3,)``).
         free: ``None``, or a callable ``t ↦`` free coordinates (φ for the 3R).
@@ -124,9 +134,22 @@ def com_line(
 
     Raises:
         ValueError: ``q_start``/``q_end`` of the wrong shape or (eagerly) not finite, a
-            ``duration`` that is (eagerly) not finite and > 0; the plan is checked again
-            where it is evaluated (under ``jit`` too).
+            ``duration`` that is (eagerly) not finite and > 0, or a plan that does not
+            start at ``q_start`` and end at ``q_end`` (a COM ``branch`` other than
+            theirs: under ``jit``/``vmap``/``grad`` a runtime error where the plan is
+            evaluated); the plan is checked again where it is evaluated.
     """
+    plan = com_plan(robot, q_start, q_end, profile, duration, free, branch, dims)
+    q_start, q_end = (jnp.asarray(q, dtype=float) for q in (q_start, q_end))
+    if not is_traced(robot, q_start, q_end, duration, profile, free):
+        _check_joins(plan, q_start, q_end)
+        return plan
+    return _guard_joins(plan, q_start, q_end)
+
+
+def com_plan(robot, q_start, q_end, profile, duration, free=None, branch=None, dims=None):
+    """:func:`com_line` without its check that the plan joins ``q_start`` and ``q_end``
+    (for callers that check the sampled motion themselves)."""
     dims = robot.com_dims if dims is None else dims
     q_start, q_end = (jnp.asarray(q, dtype=float) for q in (q_start, q_end))
     for name, q in (("q_start", q_start), ("q_end", q_end)):
@@ -139,10 +162,7 @@ def com_line(
     start = center_of_mass(robot, q_start)[:dims]
     end = center_of_mass(robot, q_end)[:dims]
     poses = StraightLine(*_end_effectors(robot, q_start, q_end), profile, duration)
-    plan = ComLine(robot, StraightLine(start, end, profile, duration), free, branch, poses)
-    if not is_traced(robot, q_start, q_end, duration, profile, free):
-        _check_joins(plan, q_start, q_end)
-    return plan
+    return ComLine(robot, StraightLine(start, end, profile, duration), free, branch, poses)
 
 
 #: a COM plan must start and end at its configurations to this tolerance on every
@@ -172,28 +192,42 @@ def _check_joins(plan: ComLine, q_start, q_end) -> None:
     move in the other working mode (the 2R's elbow flipped: the same peak force, the
     peak moment 4.2 instead of 22.7 N·m) or jumped between modes. One compiled program
     per plan structure; the branches that would join are named (one sign each)."""
-    gaps = np.asarray(_join_gaps(plan, q_start, q_end))
+    gaps = np.asarray(checked_call(join_gaps, plan, q_start, q_end, once=True))
     if np.all(gaps <= JOIN_TOLERANCE):
         return
     hint = ""
     if plan.robot.branch_size == 1:
         signs = [s for s in (1, -1) if _joins_with(plan, s, q_start, q_end)]
         hint = f"; branch={signs[0]} joins them" if signs else "; no branch joins them"
-    raise ValueError(
-        f"com_line: the COM plan with branch={plan.branch!r} does not start at q_start / "
-        f"end at q_end (largest body-COM gap [m] at start, end: {gaps.tolist()}){hint}: "
-        "give the branch of the COM inverse kinematics that q_start and q_end are on "
-        "(its sign is not the end-effector inverse kinematics')"
-    )
+    raise ValueError(f"{_NOT_JOINED.format(branch=plan.branch)} {gaps.tolist()}{hint}")
 
 
-_join_gaps = eqx.filter_jit(join_gaps)
+_NOT_JOINED = (
+    "com_line: the COM plan with branch={branch!r} does not start at q_start / end at "
+    "q_end: give the branch of the COM inverse kinematics that q_start and q_end are on "
+    "(its sign is not the end-effector inverse kinematics'); largest body-COM gap [m] "
+    "at start, end:"
+)
+
+
+def _guard_joins(plan: ComLine, q_start, q_end) -> ComLine:
+    """The traced counterpart of :func:`_check_joins`: the plan's COM start guarded by
+    the join (a runtime error where the plan is evaluated; under ``jit`` the wrong
+    branch planned the other working mode silently, the peak moment 4.2 for 22.7 N·m).
+    With the runtime checks off (an optimiser's programs) a plan that does not join is
+    NaN, so the optimiser sees an invalid point."""
+    gaps = join_gaps(plan, q_start, q_end)
+    joined = jnp.all(gaps <= JOIN_TOLERANCE)
+    start = jnp.where(joined, plan.line.start, jnp.nan)
+    start = guard(start, ~joined, _NOT_JOINED.format(branch=plan.branch), gaps)
+    return eqx.tree_at(lambda p: p.line.start, plan, start)
 
 
 def _joins_with(plan: ComLine, sign: int, q_start, q_end) -> bool:
     """Does the plan with COM branch ``sign`` join ``q_start`` and ``q_end``?"""
     other = dataclasses.replace(plan, branch=sign)
-    return bool(np.all(np.asarray(_join_gaps(other, q_start, q_end)) <= JOIN_TOLERANCE))
+    gaps = checked_call(join_gaps, other, q_start, q_end, once=True)
+    return bool(np.all(np.asarray(gaps) <= JOIN_TOLERANCE))
 
 
 @eqx.filter_jit
