@@ -257,6 +257,35 @@ def test_end_effector_ik_round_trip():
     np.testing.assert_allclose(arm.inverse_kinematics(pose, branch=-1), q, atol=1e-12)
 
 
+@pytest.mark.parametrize("phi", [2.0, -3.0, 3.3, 7.5, -20.0, 500.0])
+def test_3r_orientation_round_trips_with_its_turns(phi):
+    """``end_effector(inverse_kinematics(pose))`` gave φ − 2π for φ = 2.0 (the last
+    joint wrapped to (−π, π]): a COM plan's default φ law between two such poses then
+    turned link 3 through 6.78 rad for a 0.5 rad reorientation (peak moment 55.6 for
+    43.1 N·m). The joint angles now sum to φ itself, for the COM inverse kinematics
+    too, and the tip stays exact."""
+    arm = jaxbal.robots.planar_3r()
+    pose = jnp.array([0.225, 0.25, phi])
+    for branch in (1, -1):
+        q = arm.inverse_kinematics(pose, branch=branch)
+        np.testing.assert_allclose(arm.end_effector(q), pose, rtol=1e-15, atol=1e-13)
+        com = jaxbal.center_of_mass(arm, q)[:2]
+        q_com = arm.com_inverse_kinematics(com, phi, branch=branch)
+        assert float(jnp.sum(q_com)) == pytest.approx(phi, rel=1e-15, abs=1e-13)
+    check_grads(lambda p: arm.inverse_kinematics(p, branch=-1), (pose,), order=1)
+
+
+def test_3r_default_phi_law_takes_the_asked_reorientation():
+    """The 0.5 rad reorientation of the helper's case, planned by ``com_line``."""
+    arm = jaxbal.robots.planar_3r()
+    q0 = arm.inverse_kinematics(jnp.array([0.225, 0.25, 2.0]), branch=-1)
+    q1 = arm.inverse_kinematics(jnp.array([0.225, 0.70, 2.5]), branch=-1)
+    plan = com_line(arm, q0, q1, BangBang(), 0.5)
+    phi = np.unwrap([float(jnp.sum(plan(t))) for t in np.linspace(0.0, 0.5, 41)])
+    assert phi[-1] - phi[0] == pytest.approx(0.5, abs=1e-12)
+    assert np.all(np.diff(phi) >= -1e-12)
+
+
 def test_end_effector_pose_shapes():
     """The 2R's end effector is the tip (x, y); the 3R's is (x, y, φ) with φ = Σq
     (closed form: the tip of the unit-angle chain, 1e-15 m)."""

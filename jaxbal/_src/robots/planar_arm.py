@@ -204,9 +204,7 @@ class PlanarArm(PlanarRobot):
         valid = valid & finite
         q = jnp.stack([wrap(q1), q2])
         if n == 3:
-            # φ wrapped first: φ − q1 − q2 would lose q1 + q2 to rounding for a large φ
-            # (φ = 1e10 rad put the tip 4e-8 m off, φ = 1e300 rad 0.15 m, valid True).
-            q = jnp.concatenate([q, wrap(wrap(pose[2]) - q1 - q2)[None]])
+            q = jnp.concatenate([q, closing_angle(pose[2], q[0] + q[1])[None]])
         if return_valid:
             return q, valid
         # under jit too (a clipped, silently wrong q before): see validation.guard
@@ -266,7 +264,7 @@ class PlanarArm(PlanarRobot):
         theta2 = jnp.arctan2(rel[1], rel[0])
         q = jnp.stack([q1, wrap(theta2 - q1)])
         if n == 3:
-            q = jnp.concatenate([q, wrap(free - theta2)[None]])
+            q = jnp.concatenate([q, closing_angle(free, q[0] + q[1])[None]])
         if return_valid:
             return q, valid
         return guard(q, ~valid, "COM target not reachable by the arm", com)  # under jit too
@@ -365,3 +363,22 @@ def force_balanced(arm: PlanarArm, counter_distances) -> PlanarArm:
         counter_masses=jnp.stack(counter[::-1]),
         counter_distances=distances,
     )
+
+
+#: |φ| [rad] up to which :func:`closing_angle` keeps φ's whole turns.
+TURNS_LIMIT = 2.0**10
+
+
+def closing_angle(phi, before):
+    """The last joint angle ``φ − before`` [rad] of a 3R whose link 3 has the absolute
+    angle φ, so that the joint angles sum to φ itself, not to φ ± 2π: the round trip
+    ``end_effector(inverse_kinematics(pose))`` gives back the φ asked for (φ = 2.0
+    came back as 2.0 − 2π, and a COM plan's default φ law between two such poses turned
+    link 3 a full extra turn). φ is wrapped first, since ``φ − before`` would lose
+    ``before`` to rounding for a large φ (φ = 1e10 rad put the tip 4e-8 m off, 1e300
+    0.15 m); for ``|φ| >`` :data:`TURNS_LIMIT` the whole turns are dropped for the
+    same reason (the angle is then in ``(−π, π]``).
+    """
+    rest = wrap(wrap(phi) - before)
+    turns = jnp.round((phi - before - rest) / (2 * jnp.pi))
+    return rest + jnp.where(jnp.abs(phi) <= TURNS_LIMIT, 2 * jnp.pi * turns, 0.0)
