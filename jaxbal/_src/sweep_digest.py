@@ -7,11 +7,13 @@ numbers and strings by value, containers and pytrees element by element — and 
 Python function by its code: the bytecode, constants and names of its code object and
 of the code objects nested in it (lambdas, inner functions), its defaults, the values
 its closure captures, and the globals it reads that are numbers, strings, arrays,
-containers of them, or functions of its own module (a helper whose body changed, a
-module-level index). Line numbers, object addresses and ``hash()`` (salted per process)
-never enter, so an unchanged script rerun in a new process gives the same digest;
-editing a metric's or a setter's body, or a constant it reads, gives another. Code of
-other modules (jaxbal's own functions reached by name, NumPy, …) enters by name only.
+containers of them, pytrees (a module-level profile, robot or base model), the data
+attributes it names of a module it reads (``config.SCALE``), or functions of its own
+module, jitted or not (a helper whose body changed, a module-level index). Line
+numbers, object addresses and ``hash()`` (salted per process) never enter, so an
+unchanged script rerun in a new process gives the same digest; editing a metric's or a
+setter's body, or a constant it reads, gives another. Code of other modules (jaxbal's
+own functions reached by name, NumPy, …) enters by name only.
 """
 
 from __future__ import annotations
@@ -132,17 +134,43 @@ def _code(digest, code: types.CodeType, globals_: dict | None, seen: set) -> Non
         _update(digest, constant, globals_, seen)
     if globals_ is None:
         return
+    module = globals_.get("__name__")
     for name in code.co_names:
         if name not in globals_:
             continue  # an attribute, or a builtin
         found = globals_[name]
-        if isinstance(found, types.FunctionType):
-            read = found.__module__ == globals_.get("__name__")  # a helper of its module
-        else:
-            read = isinstance(found, _PLAIN | _CONTAINERS | jax.Array | np.ndarray | np.generic)
-        if read:
+        if isinstance(found, types.ModuleType):
+            # ``config.SCALE``: the data attributes of an imported module that the code
+            # names (every name it reads that the module has: a superset, never fewer)
+            for attribute in code.co_names:
+                value = getattr(found, attribute, None)
+                if attribute != name and _is_data(value):
+                    digest.update(f"global:{name}.{attribute};".encode())
+                    _update(digest, value, None, seen)
+        elif _is_data(found) or _is_own_function(found, module):
             digest.update(f"global:{name};".encode())
             _update(digest, found, None, seen)
+
+
+def _is_data(value) -> bool:
+    """A value a global is read as: a number, string, array, container, or a pytree
+    (an ``equinox.Module`` such as a profile or a robot, hashed by its structure and
+    leaves); not a function, class, module or an arbitrary object (its ``repr``)."""
+    if isinstance(value, _PLAIN | _CONTAINERS | jax.Array | np.ndarray | np.generic):
+        return True
+    if value is None or callable(value) and not hasattr(value, "__dataclass_fields__"):
+        return False  # a function, a class, a jit wrapper (see _is_own_function)
+    if isinstance(value, type | types.ModuleType):
+        return False
+    leaves = jax.tree_util.tree_leaves(value)
+    return not (len(leaves) == 1 and leaves[0] is value)  # a pytree, not a leaf
+
+
+def _is_own_function(value, module) -> bool:
+    """A function of the reading code's own module (a helper whose body may change),
+    also behind a wrapper (``jax.jit``, ``functools.wraps``)."""
+    value = getattr(value, "__wrapped__", value)
+    return isinstance(value, types.FunctionType) and value.__module__ == module
 
 
 def value_digest(value) -> str:
