@@ -115,3 +115,85 @@ def test_linear_key_reaches_the_sweep(tmp_path):
                           **spec.options)  # fmt: skip
     assert "evaluation" not in direct.attrs
     np.testing.assert_allclose(fast["value"].values, direct["value"].values, rtol=1e-12)
+
+
+TRAPEZOID = SPEC.replace('profile = "bang_bang"\n', 'kind = "trapezoid"\n')
+
+
+def test_trapezoid_spec_moves_on_its_branch(tmp_path):
+    """``kind = "trapezoid"`` ignored ``branch``: branch -1 and +1 gave the robot's
+    default elbow and the same numbers. Reference: the start configuration equals the
+    2R's closed-form inverse kinematics on that branch (to 1e-12 rad)."""
+    arm = jaxbal.robots.planar_2r()
+    for branch in (-1, 1):
+        loaded = load_spec(_write(tmp_path, TRAPEZOID.replace("branch = -1", f"branch = {branch}")))
+        q = loaded.motion(loaded.robot, loaded.trajectory).q
+        q0 = arm.inverse_kinematics(np.array([0.225, 0.25]), branch=branch)
+        np.testing.assert_allclose(q[0], q0, atol=1e-12)
+
+
+@pytest.mark.parametrize(
+    "base, edit, message",
+    [
+        (TRAPEZOID, ("branch = -1", 'branch = -1\nprofile = "cubic"'),
+         "[motion] key(s) ['profile'] do not apply to kind = 'trapezoid'"),
+        (SPEC, ("branch = -1", "branch = -1\nu2 = 0.3"),
+         "[motion] key(s) ['u2'] do not apply to kind = 'end_effector'"),
+        (TRAPEZOID, ("branch = -1", "branch = -1\nu2 = 0.9"), "[motion] u2 must be a number > 0"),
+        (TRAPEZOID, ("branch = -1", "branch = -1\nu2 = nan"), "[motion] u2 must be"),
+        (TRAPEZOID, ("branch = -1", "branch = -1\nratio = 0"), "[motion] ratio must be"),
+        (SPEC, ("[robot]", "memory_budget_mib = inf\n[robot]"), "memory_budget_mib must be"),
+        (SPEC, ("[robot]", "memory_budget_mib = 0\n[robot]"), "memory_budget_mib must be"),
+        (SPEC, ("[robot]", "chunk_size = inf\n[robot]"), "chunk_size must be an integer ≥ 1"),
+        (SPEC, ("[robot]", "chunk_size = -5\n[robot]"), "chunk_size must be an integer ≥ 1"),
+        (SPEC, ("[robot]", "chunk_size = 2.5\n[robot]"), "chunk_size must be an integer ≥ 1"),
+        (SPEC, ("counter_mass = [0.0, 2.0]", "counter_mass = [2.0]"),
+         "[axes.designs] bounds 'counter_mass' must be (low, high)"),
+        (SPEC, ("counter_mass = [0.0, 2.0]", "counter_mass = 2.0"),
+         "[axes.designs] bounds 'counter_mass' must be (low, high)"),
+        (SPEC, ('units = { counter_mass = "kg" }', 'units = "kg"'),
+         "[axes.designs] units must be a table"),
+        (SPEC, ('metric = ["peak_force", "peak_moment"]', "metric = 5"),
+         "metric must be a name or a list of names, got 5"),
+        (SPEC, ('[axes.payload]\nlinspace = [0.0, 1.0, 3]\nunits = "kg"', "[axes]\npayload = 5"),
+         "[axes.payload] must be a table"),
+    ],
+)  # fmt: skip
+def test_misplaced_or_malformed_spec_keys_exit_2_naming_the_key(tmp_path, base, edit, message):
+    """Were silently ignored (a key of the other motion kind), accepted (chunk_size ≤ 0,
+    a bad u2 that failed later and left an empty store) or escaped as an
+    OverflowError/IndexError/TypeError traceback."""
+    assert edit[0] in base
+    spec, store = _write(tmp_path, base.replace(*edit)), tmp_path / "bad.zarr"
+    result = CliRunner().invoke(app, ["sweep", str(spec), "--out", str(store), "--no-progress"])
+    assert result.exit_code == 2, result.output
+    assert message in result.output and "Traceback" not in result.output
+    assert len(result.output.strip().splitlines()) == 1
+    assert not store.exists()
+
+
+def test_a_failing_runtime_check_prints_one_line_without_jax_traceback(tmp_path, caplog):
+    """jax logged a traceback (``jax.pure_callback failed``) and equinox's banner for
+    the runtime check before the CLI's error line."""
+    bad_u2 = TRAPEZOID.split("[axes.payload]")[0].replace("samples = 33", "samples = 5")
+    bad_u2 = bad_u2.replace('["peak_force", "peak_moment"]', '"peak_force"')
+    bad_u2 += "[axes.u2]\nvalues = [0.2, 0.7]\n"
+    spec, store = _write(tmp_path, bad_u2), tmp_path / "s.zarr"
+    result = CliRunner().invoke(app, ["sweep", str(spec), "--out", str(store), "--no-progress"])
+    assert result.exit_code == 2, result.output
+    assert result.output.startswith("error: sweep block 0 (u2 in [0.2, 0.7]")
+    assert "switch times must satisfy" in result.output
+    assert not [r for r in caplog.records if r.name.startswith("jax")], caplog.text
+
+
+def test_out_an_existing_file_is_refused_even_with_resume(tmp_path):
+    """Was: "exists: pass --resume to continue it", also with --resume."""
+    spec, store = _write(tmp_path, SPEC), tmp_path / "afile.zarr"
+    store.write_text("hi")
+    for extra in ([], ["--resume"]):
+        command = ["sweep", str(spec), "--out", str(store), "--no-progress", *extra]
+        result = CliRunner().invoke(app, command)
+        assert result.exit_code == 2, result.output
+        assert "is a file, not a jaxbal sweep store" in result.output
+        assert "pass --resume" not in result.output
+    assert store.read_text() == "hi"

@@ -21,8 +21,8 @@ Example (``experiments/sweeps/dual_v_payload.toml``)::
     duration = 0.1                            # s
     samples = 101
     profile = "quintic"                       # "quintic" or "bang_bang" (kind end_effector)
-    # branch = [1, 1, 1, 1]                   # IK branch (default: the robot's)
-    # u2 = 0.25, ratio = 1.0                  # switch times of kind "trapezoid" (θ)
+    # branch = [1, 1, 1, 1]                   # IK branch, both kinds (default: the robot's)
+    # u2 = 0.25, ratio = 1.0                  # kind "trapezoid": θ, 0 < u2 < 1/2, 0 < ratio ≤ 1
 
     [axes.payload]
     linspace = [0.0, 0.5, 20]                 # or values = [...]
@@ -38,7 +38,9 @@ Example (``experiments/sweeps/dual_v_payload.toml``)::
 An axis's parameters are design variables of the robot (``robot.design()``) or, with
 ``kind = "trapezoid"``, the switch-time variables ``u2`` and ``ratio`` of
 :class:`jaxbal.design.TrapezoidLine`. Relative paths are relative to the spec file.
-Every error is a :class:`ValueError` naming the offending key.
+A key of the other motion kind (``profile`` with a trapezoid, ``u2`` with an
+end-effector line) is refused. Every error is a :class:`ValueError` naming the offending
+key.
 """
 
 from __future__ import annotations
@@ -54,6 +56,10 @@ __all__ = ["SweepSpec", "load_spec"]
 _MOTION_KINDS = ("end_effector", "trapezoid")
 _PROFILES = ("quintic", "bang_bang")
 _SAMPLES = ("sobol", "halton", "uniform")
+_MOTION_KEYS = {  # the keys of each kind of [motion]
+    "end_effector": {"kind", "start", "end", "duration", "samples", "branch", "profile"},
+    "trapezoid": {"kind", "start", "end", "duration", "samples", "branch", "u2", "ratio"},
+}
 _TOP = {"metric", "memory_budget_mib", "chunk_size", "linear", "robot", "motion", "axes"}
 
 
@@ -81,6 +87,11 @@ def _unknown(table: dict, allowed, where: str) -> None:
     extra = sorted(set(table) - set(allowed))
     if extra:
         raise ValueError(f"unknown key(s) {extra} in {where}; allowed: {sorted(allowed)}")
+
+
+def _is_number(value) -> bool:
+    """A TOML integer or float (not a boolean)."""
+    return isinstance(value, int | float) and not isinstance(value, bool)
 
 
 def _need(table: dict, key: str, where: str):
@@ -137,11 +148,13 @@ def _motion(robot, table: dict):
     from jaxbal._src.profiles import BangBang, Quintic
     from jaxbal._src.trajectory import StraightLine, sample_times
 
-    allowed = {"kind", "start", "end", "duration", "samples", "profile", "branch", "u2", "ratio"}
-    _unknown(table, allowed, "[motion]")
+    _unknown(table, set().union(*_MOTION_KEYS.values()), "[motion]")
     kind = table.get("kind", "end_effector")
     if kind not in _MOTION_KINDS:
         raise ValueError(f"[motion] kind = {kind!r} is unknown; choose one of {_MOTION_KINDS}")
+    misplaced = sorted(set(table) - _MOTION_KEYS[kind])
+    if misplaced:
+        raise ValueError(f"[motion] key(s) {misplaced} do not apply to kind = {kind!r}")
     start, end = _pose(table, "start"), _pose(table, "end")
     duration = float(_need(table, "duration", "[motion]"))
     if not (np.isfinite(duration) and duration > 0):
@@ -150,23 +163,49 @@ def _motion(robot, table: dict):
     if not isinstance(samples, int) or samples < 2:
         raise ValueError(f"[motion] samples must be an integer ≥ 2, got {samples!r}")
     times = sample_times(duration, samples)
+    branch = table.get("branch")
+    branch = tuple(int(b) for b in branch) if isinstance(branch, list) else branch
     if kind == "trapezoid":
-        theta = {"u2": float(table.get("u2", 0.25)), "ratio": float(table.get("ratio", 1.0))}
-        return TrapezoidLine(start, end, jnp.asarray(times)), theta
+        theta = {"u2": _switch(table, "u2", 0.25), "ratio": _switch(table, "ratio", 1.0)}
+        path = {} if branch is None else {"path": _BranchPath(branch)}
+        return TrapezoidLine(start, end, jnp.asarray(times), **path), theta
     profile = table.get("profile", "quintic")
     if profile not in _PROFILES:
         raise ValueError(f"[motion] profile = {profile!r} is unknown; choose one of {_PROFILES}")
     shape = Quintic() if profile == "quintic" else BangBang()
-    branch = table.get("branch")
-    branch = tuple(int(b) for b in branch) if isinstance(branch, list) else branch
     line = EndEffectorLine(robot, StraightLine(start, end, shape, duration), branch=branch)
     return motion_samples(robot, [line], times), {}
+
+
+def _switch(table: dict, key: str, default: float) -> float:
+    """Switch-time variable ``u2`` (``0 < u2 < 1/2``) or ``ratio = u1/u2`` (``0 < ratio
+    ≤ 1``) of a trapezoid (:class:`jaxbal.profiles.TrapezoidalAcceleration`)."""
+    value = table.get(key, default)
+    high, closed = (0.5, False) if key == "u2" else (1.0, True)
+    if not (_is_number(value) and 0 < value and (value <= high if closed else value < high)):
+        bound = f"≤ {high}" if closed else f"< {high}"
+        raise ValueError(f"[motion] {key} must be a number > 0 and {bound}, got {value!r}")
+    return float(value)
+
+
+@dataclass(frozen=True)
+class _BranchPath:
+    """The ``path`` of a :class:`~jaxbal.design.TrapezoidLine` on IK branch ``branch``."""
+
+    branch: object
+
+    def __call__(self, robot, line):
+        from jaxbal._src.planning import EndEffectorLine
+
+        return EndEffectorLine(robot, line, branch=self.branch)
 
 
 def _axis(name: str, table: dict):
     from jaxbal._src import sweep_axes
 
     where = f"[axes.{name}]"
+    if not isinstance(table, dict):
+        raise ValueError(f"{where} must be a table (values, linspace or sample), got {table!r}")
     if "sample" in table:
         _unknown(table, {"sample", "n", "seed", "bounds", "units"}, where)
         kind = table["sample"]
@@ -175,10 +214,14 @@ def _axis(name: str, table: dict):
         bounds = _need(table, "bounds", where)
         if not isinstance(bounds, dict) or not bounds:
             raise ValueError(f"{where} bounds must be a table {{parameter = [low, high]}}")
+        units = table.get("units", {})
+        if not isinstance(units, dict):
+            raise ValueError(f"{where} units must be a table {{parameter = unit}}, got {units!r}")
         build = getattr(sweep_axes, kind)
-        return build(
-            _need(table, "n", where), bounds, seed=table.get("seed", 0), units=table.get("units")
-        )
+        try:
+            return build(_need(table, "n", where), bounds, seed=table.get("seed", 0), units=units)
+        except ValueError as error:
+            raise ValueError(f"{where} {error}") from None
     _unknown(table, {"values", "linspace", "units"}, where)
     if ("values" in table) == ("linspace" in table):
         raise ValueError(f"{where} needs exactly one of 'values', 'linspace' or 'sample'")
@@ -189,13 +232,18 @@ def _axis(name: str, table: dict):
         values = np.linspace(float(spec[0]), float(spec[1]), int(spec[2]))
     else:
         values = table["values"]
-    return sweep_axes.grid(values, units=str(table.get("units", "")))
+    units = table.get("units", "")
+    if not isinstance(units, str):
+        raise ValueError(f"{where} units must be a string, got {units!r}")
+    return sweep_axes.grid(values, units=units)
 
 
 def _metric(metric):
     from jaxbal._src.metrics import METRICS
 
-    names = [metric] if isinstance(metric, str) else list(metric)
+    names = [metric] if isinstance(metric, str) else metric
+    if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
+        raise ValueError(f"metric must be a name or a list of names, got {metric!r}")
     unknown = [n for n in names if n not in METRICS]
     if not names or unknown:
         raise ValueError(f"metric {unknown or metric!r} is unknown; choose from {sorted(METRICS)}")
@@ -270,9 +318,15 @@ def load_spec(path) -> SweepSpec:
             raise ValueError(f'{path.name}: linear must be true, false or "auto", got {linear!r}')
         options["linear"] = linear
     if "memory_budget_mib" in table:
-        options["memory_budget"] = int(float(table["memory_budget_mib"]) * 2**20)
+        budget = table["memory_budget_mib"]
+        if not (_is_number(budget) and np.isfinite(budget) and budget > 0):
+            raise ValueError(f"{path.name}: memory_budget_mib must be a number > 0, got {budget!r}")
+        options["memory_budget"] = max(int(budget * 2**20), 1)
     if "chunk_size" in table:
-        options["chunk_size"] = int(table["chunk_size"])
+        chunk = table["chunk_size"]
+        if not (_is_number(chunk) and isinstance(chunk, int) and chunk >= 1):
+            raise ValueError(f"{path.name}: chunk_size must be an integer ≥ 1, got {chunk!r}")
+        options["chunk_size"] = chunk
     if units:
         options["units"] = units
     description = {"spec": path.name, "robot_spec": str(table["robot"])}
