@@ -450,3 +450,24 @@ def test_a_swept_geometry_that_opens_the_loops_of_a_fixed_motion_is_refused():
     ds = jaxbal.sweep("peak_torque", robot, motion, same, progress=False)
     expected = jaxbal.design.peak_torque(robot, motion)
     np.testing.assert_allclose(ds["value"].values, [expected], rtol=1e-12)
+
+
+RAY_CHECK = """
+from jaxbal._src.sweep_ray import RayBackend
+negative = {"m": jaxbal.sweep.grid([1.0, -1.0], where=lambda r: r.masses)}
+backend = RayBackend(init={"num_cpus": 1, "include_dashboard": False, "log_to_driver": False})
+try:
+    jaxbal.sweep("peak_force", robot, motion, negative, backend=backend, progress=False)
+except Exception as error:
+    print(json.dumps({"type": type(error).__name__, "message": str(error)}))
+"""
+
+
+@pytest.mark.slow  # a Ray cluster in a fresh interpreter (~20 s): make test-all
+def test_ray_backend_reports_a_failing_check_like_the_local_one():
+    """Was a ``RayTaskError(JaxRuntimeError)`` where the local backend raises the
+    ``ValueError`` naming the block (``jaxbal sweep --backend ray``: a traceback)."""
+    pytest.importorskip("ray")
+    result = _json(_child(RAY_CHECK, timeout=300))
+    assert result["type"] == "ValueError", result
+    assert result["message"].startswith("sweep block 0 (m in [-1, 1]): body masses must be")

@@ -220,3 +220,23 @@ def test_cli_finds_the_experiments_from_any_folder_or_exits_2(tmp_path, monkeypa
         assert result.exit_code == 2, (command, result.output)
         assert result.output.startswith("error: no experiments/ folder next to the jaxbal")
         assert len(result.output.strip().splitlines()) == 1 and "Traceback" not in result.output
+
+
+def test_chunk_size_and_memory_budget_are_checked(arm):
+    """``chunk_size`` ≤ 0 and ``memory_budget`` ≤ 0 were accepted silently."""
+    robot, motion = arm
+    axes = {"payload": [0.0, 0.5, 1.0]}
+    for bad in (0, -3, 2.5, True):
+        with pytest.raises(ValueError, match=rf"chunk_size must be an integer ≥ 1.*{bad!r}"):
+            jaxbal.sweep("peak_force", robot, motion, axes, chunk_size=bad, progress=False)
+    for bad in (0, -1, float("nan")):
+        with pytest.raises(ValueError, match="memory_budget must be a number of bytes ≥ 1"):
+            jaxbal.sweep("peak_force", robot, motion, axes, memory_budget=bad, progress=False)
+
+
+def test_every_named_metric_has_a_unit():
+    """``peak_torque_rate`` had none (its docstring: N·m/s, N/s for a prismatic joint)."""
+    from jaxbal._src.sweep import METRIC_UNITS
+
+    assert set(jaxbal.design.METRICS) <= set(METRIC_UNITS)
+    assert METRIC_UNITS["peak_torque_rate"] == "N·m/s or N/s"

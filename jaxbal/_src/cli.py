@@ -348,8 +348,9 @@ def sweep_command(
             store=out, resume=resume, backend=chosen, progress=progress,
             attrs=loaded.description, **loaded.options,
         )  # fmt: skip
-    except FileExistsError:  # the Python call's message names resume=True
-        typer.echo(f"error: {out} exists: pass --resume to continue it, or remove it", err=True)
+    except FileExistsError as error:  # the Python call's message names resume=True
+        hint = f"{out} exists: pass --resume to continue it, or remove it"
+        typer.echo(f"error: {error if resume else hint}", err=True)
         raise typer.Exit(code=2) from None
     except ValueError as error:
         typer.echo(f"error: {error}", err=True)

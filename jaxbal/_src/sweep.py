@@ -52,6 +52,7 @@ METRIC_UNITS = {
     "rms_moment": "N·m",
     "peak_torque": "N·m or N",
     "rms_torque": "N·m or N",
+    "peak_torque_rate": "N·m/s or N/s",
     "added_mass": "kg",
     "added_inertia": "kg·m²",
 }
@@ -287,6 +288,23 @@ def _metadata(metric, robot, axes, outputs, units, output_dims, attrs, evaluatio
     }
 
 
+def _check_sizes(chunk_size, memory_budget, store) -> None:
+    """Refuse a ``chunk_size`` that is not an integer ≥ 1, a ``memory_budget`` that is
+    not > 0 bytes, and a ``store`` that is an existing file (a store is a folder)."""
+    if chunk_size is not None and not (
+        isinstance(chunk_size, int | np.integer) and not isinstance(chunk_size, bool)
+        and chunk_size >= 1
+    ):  # fmt: skip
+        raise ValueError(f"chunk_size must be an integer ≥ 1 (points), got {chunk_size!r}")
+    if not (isinstance(memory_budget, int | float | np.number) and memory_budget >= 1):
+        raise ValueError(f"memory_budget must be a number of bytes ≥ 1, got {memory_budget!r}")
+    if store is not None and Path(store).exists() and not Path(store).is_dir():
+        raise ValueError(
+            f"{store} is a file, not a jaxbal sweep store (a folder): remove it or choose "
+            "another path"
+        )
+
+
 def sweep(
     metric: Callable | str,
     robot,
@@ -339,8 +357,11 @@ def sweep(
             runtime check failing in a block (naming its parameter ranges), or a
             non-finite output (naming the point; ``allow_nonfinite=True`` stores it
             instead). The blocks finished before stay in the store.
+        ValueError: also a ``chunk_size`` that is not an integer ≥ 1, a
+            ``memory_budget`` below 1 byte, or a ``store`` that is a file.
         FileExistsError: ``store`` exists and ``resume`` is False.
     """
+    _check_sizes(chunk_size, memory_budget, store)
     axes, program, dynamic, outputs, evaluation = prepare(
         metric, robot, motion, axes, trajectory=trajectory, devices=devices, linear=linear
     )

@@ -129,9 +129,18 @@ def _bounds(bounds: Mapping) -> tuple[list[str], np.ndarray, np.ndarray]:
     if not bounds:
         raise ValueError("a sample needs bounds {parameter: (low, high)}")
     names = list(bounds)
-    low, high = (np.array([float(bounds[k][i]) for k in names]) for i in (0, 1))
-    if not np.all(high > low):
-        raise ValueError(f"bounds need high > low, got {dict(bounds)}")
+    pairs = []
+    for name in names:
+        try:
+            low, high = (float(b) for b in bounds[name])
+        except (TypeError, ValueError):
+            low = high = np.nan  # not a pair of numbers
+        if not (np.isfinite(low) and np.isfinite(high) and high > low):
+            raise ValueError(
+                f"bounds {name!r} must be (low, high), finite with high > low, got {bounds[name]!r}"
+            )
+        pairs.append((low, high))
+    low, high = np.array(pairs).T
     return names, low, high
 
 

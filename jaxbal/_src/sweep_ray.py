@@ -81,6 +81,7 @@ def _worker_program(token: str, payload):
 def evaluate_block(token: str, payload, params: dict) -> dict:
     """One block on this process's devices: ``{output: (B, …)}`` as NumPy arrays."""
     from jaxbal._src.sweep_program import evaluate, put
+    from jaxbal._src.sweep_run import quiet_checks
 
     program, dynamic = _worker_program(token, payload)
     batch = len(next(iter(params.values())))
@@ -88,14 +89,18 @@ def evaluate_block(token: str, payload, params: dict) -> dict:
     if padded != batch:
         params = {k: np.concatenate([v, np.repeat(v[-1:], padded - batch, 0)]) for k, v in
                   params.items()}  # fmt: skip
-    result = evaluate(program, dynamic, put(program, params), payload[3])
-    return {k: np.asarray(v)[:batch] for k, v in result.items()}
+    with quiet_checks():
+        result = evaluate(program, dynamic, put(program, params), payload[3])
+        return {k: np.asarray(v)[:batch] for k, v in result.items()}
 
 
 def evaluate_ray(
     backend: RayBackend, program, dynamic, chunks, pending, write, advance, fold=False
 ) -> None:
-    """Evaluate the ``pending`` blocks as Ray tasks; ``write(k, outputs)`` each result."""
+    """Evaluate the ``pending`` blocks as Ray tasks; ``write(k, outputs)`` each result.
+    A runtime check failing in a block raises the ``ValueError`` of the local backend."""
+    from jaxbal._src.sweep_run import block_error
+
     ray = _connect(backend)
     remote = ray.remote(evaluate_block).options(
         max_retries=backend.max_retries,
@@ -118,7 +123,11 @@ def evaluate_ray(
             ready, _ = ray.wait(list(running), num_returns=1)
             for ref in ready:
                 k, m = running.pop(ref)
-                write(k, chunks.unpad(k, ray.get(ref), m))
+                try:
+                    outputs = ray.get(ref)
+                except Exception as error:  # noqa: BLE001 - re-raised with the block named
+                    raise block_error(chunks, k, error) from error
+                write(k, chunks.unpad(k, outputs, m))
                 advance(m)
     finally:
         for ref in running:

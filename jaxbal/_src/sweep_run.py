@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import math
 
 import numpy as np
@@ -9,7 +11,7 @@ import numpy as np
 from jaxbal._src.sweep_program import evaluate, put
 from jaxbal._src.sweep_ray import RayBackend, evaluate_ray
 
-__all__ = ["evaluate_local", "run_backend"]
+__all__ = ["block_error", "evaluate_local", "quiet_checks", "run_backend"]
 
 
 def _progress(chunks, pending, enabled: bool):
@@ -43,7 +45,8 @@ def run_backend(
         if isinstance(backend, RayBackend):
             evaluate_ray(backend, program, dynamic, chunks, pending, store.write, bar.update, fold)
         else:
-            evaluate_local(program, dynamic, chunks, pending, store.write, bar.update, fold)
+            with quiet_checks():
+                evaluate_local(program, dynamic, chunks, pending, store.write, bar.update, fold)
     finally:
         bar.close()
 
@@ -57,7 +60,7 @@ def evaluate_local(program, dynamic, chunks, pending, write, advance, fold=False
         try:
             result = evaluate(program, dynamic, put(program, params), fold)
         except Exception as error:  # noqa: BLE001 - re-raised with the block named
-            raise _block_error(chunks, k, error) from error
+            raise block_error(chunks, k, error) from error
         if in_flight is not None:
             _finish(chunks, *in_flight, write, advance)
         in_flight = (k, result, m)
@@ -65,7 +68,7 @@ def evaluate_local(program, dynamic, chunks, pending, write, advance, fold=False
         _finish(chunks, *in_flight, write, advance)
 
 
-def _block_error(chunks, k: int, error: Exception) -> Exception:
+def block_error(chunks, k: int, error: Exception) -> Exception:
     """A runtime check that failed in block ``k`` (e.g. a non-physical robot built by a
     setter) as a ``ValueError`` naming the block's parameter ranges and the check."""
     import re
@@ -85,6 +88,24 @@ def _finish(chunks, k, result, m, write, advance):
     try:
         outputs = chunks.unpad(k, result, m)
     except Exception as error:  # noqa: BLE001 - JAX reports runtime checks here
-        raise _block_error(chunks, k, error) from error
+        raise block_error(chunks, k, error) from error
     write(k, outputs)
     advance(m)
+
+
+def _not_a_check(record: logging.LogRecord) -> bool:
+    """False for jax's log of a failed runtime check (an ``_EquinoxRuntimeError`` raised
+    in a callback), which :func:`block_error` reports as a ``ValueError``."""
+    error = record.exc_info[1] if record.exc_info else None
+    return type(error).__name__ != "_EquinoxRuntimeError"
+
+
+@contextlib.contextmanager
+def quiet_checks():
+    """Within: jax does not log a traceback for each failed runtime check of a block."""
+    logger = logging.getLogger("jax._src.callback")
+    logger.addFilter(_not_a_check)
+    try:
+        yield
+    finally:
+        logger.removeFilter(_not_a_check)
