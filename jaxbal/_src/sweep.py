@@ -30,7 +30,7 @@ from jaxbal._src.sweep_program import (
     shape_key,
 )
 from jaxbal._src.sweep_run import run_backend
-from jaxbal._src.sweep_store import SweepStore, open_dataset, remove_partial_files
+from jaxbal._src.sweep_store import SweepStore, check_labels, open_dataset, remove_partial_files
 
 __all__ = [
     "DEFAULT_MEMORY_BUDGET",
@@ -241,7 +241,9 @@ def prepare(
     """``(axes, program, dynamic, outputs, evaluation)`` of a sweep (see :func:`sweep`);
     ``evaluation`` says whether the affine fast path is used."""
     from jaxbal._src.metrics import resolve_metric
+    from jaxbal._src.sweep_inputs import trajectory_values
 
+    theta = trajectory_values(motion, trajectory)  # refused: θ of a fixed motion, NaN
     axes = _axes(axes)
     function = resolve_metric(metric) if isinstance(metric, str) else metric
     plan = plan_parameters(axes, robot, motion)
@@ -252,7 +254,6 @@ def prepare(
     fast = _affine(metric, robot, motion, axes, plan, trajectory, linear)
     if fast is not None:
         robot, function, plan, evaluation = fast
-    theta = {k: np.asarray(v, dtype=float) for k, v in (trajectory or {}).items()}
     device_list = None if devices is None else list(devices)
     program, dynamic = build(
         function, robot, motion, theta, plan, device_mesh(device_list) if mesh else None
@@ -352,9 +353,11 @@ def sweep(
         ValueError: an unknown parameter, values that are not finite, below a design
             variable's lower bound or of a shape that does not fit it, an axis named
             like an output or ``_jaxbal`` (naming the axis), a trajectory variable
-            nobody gives (naming it), a closed chain's fixed motion off the robot's
-            loops, a store resumed with other inputs or code (naming what changed), a
-            runtime check failing in a block (naming its parameter ranges), or a
+            nobody gives or θ given to a fixed motion (naming it), a closed chain's
+            fixed motion off the robot's loops, a store resumed with other inputs, code,
+            units or output_dims (naming what changed; it keeps the ``attrs`` it was
+            written with) or that is no sweep store, a runtime check failing in a block
+            (naming its parameter ranges), or a
             non-finite output (naming the point; ``allow_nonfinite=True`` stores it
             instead). The blocks finished before stay in the store.
         ValueError: also a ``chunk_size`` that is not an integer ≥ 1, a
@@ -376,6 +379,7 @@ def sweep(
         remove_partial_files(path)
         opened = SweepStore.open(path)
         check_resumable(path, opened.description, parts)
+        check_labels(path, opened.group, axes, outputs, meta)
     else:
         if chunk_size is None:
             first, _ = Chunks(axes, Layout.for_chunk(sizes, 1), 1).params(0)

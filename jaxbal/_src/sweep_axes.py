@@ -29,6 +29,8 @@ __all__ = ["Axis", "Layout", "grid", "halton", "points", "sobol", "uniform"]
 
 #: a setter ``(robot, value) -> robot`` or ``None`` (design variable or trajectory).
 Setter = Callable | None
+#: most points of a sample (and of a spec's ``linspace``): more would not fit in memory.
+MAX_POINTS = 10**8
 
 
 @dataclass(frozen=True, eq=False)
@@ -89,6 +91,7 @@ def _setter(set, where) -> Setter:
         leaf = where(robot)
         return eqx.tree_at(where, robot, jnp.broadcast_to(value, jnp.shape(leaf)))
 
+    tree_set.where = where  # the leaf's shape is checked before the sweep compiles
     return tree_set
 
 
@@ -182,8 +185,11 @@ def uniform(n: int, bounds: Mapping, *, seed: int = 0, units=None, setters=None)
 
 
 def _count(n) -> int:
-    if int(n) != n or n < 1:
-        raise ValueError(f"a sample needs a positive integer count, got {n!r}")
+    if not (
+        isinstance(n, int | float | np.number) and not isinstance(n, bool) and np.isfinite(n)
+        and int(n) == n and 1 <= n <= MAX_POINTS
+    ):  # fmt: skip
+        raise ValueError(f"a sample needs an integer count from 1 to {MAX_POINTS:.0e}, got {n!r}")
     return int(n)
 
 

@@ -2,8 +2,11 @@
 ``ValueError`` that names the axis or parameter at fault.
 
 * :func:`check_bounds`: design variables swept below their lower bound;
-* :func:`check_shapes`: a design variable's values of a shape that does not broadcast to
-  the variable's (e.g. ``(n, 3)`` values of a ``(2,)`` counter-mass vector);
+* :func:`check_shapes`: a design variable's values, or a ``where=`` leaf's, of a shape
+  that does not broadcast to the variable's (e.g. ``(n, 3)`` values of a ``(2,)``
+  counter-mass vector);
+* :func:`trajectory_values`: a fixed θ (``trajectory=``) given with a motion that takes
+  none (not a factory), or not finite;
 * :func:`check_names`: an axis or parameter named like an array the store holds
   already (the metric's outputs, e.g. ``value``, and the ``_jaxbal`` manifest);
 * :func:`trajectory_shapes`: the outputs' shapes, a motion factory that reads a
@@ -17,7 +20,7 @@ import numpy as np
 from jaxbal._src.sweep_program import output_shapes
 from jaxbal._src.sweep_store import MANIFEST, parameter_key
 
-__all__ = ["check_bounds", "check_names", "check_shapes", "trajectory_shapes"]
+__all__ = ["check_bounds", "check_names", "check_shapes", "trajectory_shapes", "trajectory_values"]
 
 
 def check_bounds(axes: dict, robot, plan) -> None:
@@ -42,8 +45,9 @@ def check_bounds(axes: dict, robot, plan) -> None:
 
 
 def check_shapes(axes: dict, robot, plan) -> None:
-    """Refuse a design variable swept with values ``(n, *shape)`` whose ``shape`` does
-    not broadcast to the variable's (a scalar per point always does).
+    """Refuse a design variable, or a leaf set by ``grid(..., where=)``, swept with
+    values ``(n, *shape)`` whose ``shape`` does not broadcast to the leaf's (a scalar
+    per point always does).
 
     Raises:
         ValueError: naming the axis, the variable, its shape and the values' shape.
@@ -52,9 +56,13 @@ def check_shapes(axes: dict, robot, plan) -> None:
     kinds = {name: how for name, how, _ in plan}
     for dim, axis in axes.items():
         for name, values in axis.values.items():
-            if kinds.get(name) != "design":
+            where = getattr(axis.setters.get(name), "where", None)  # grid(..., where=)
+            if where is not None:
+                leaf, what = tuple(np.shape(where(robot))), "the where= leaf"
+            elif kinds.get(name) == "design":
+                leaf, what = tuple(np.shape(design[name])), "a design variable"
+            else:
                 continue
-            leaf = tuple(np.shape(design[name]))
             try:
                 fits = np.broadcast_shapes(values.shape[1:], leaf) == leaf
             except ValueError:
@@ -62,7 +70,7 @@ def check_shapes(axes: dict, robot, plan) -> None:
             if not fits:
                 n = len(values)
                 raise ValueError(
-                    f"sweep axis {dim!r}: {name} is a design variable of shape {leaf} of "
+                    f"sweep axis {dim!r}: {name} is {what} of shape {leaf} of "
                     f"{type(robot).__name__}, so its {n} values need shape {(n, *leaf)} (or "
                     f"({n},), a scalar per point); got values of shape {values.shape}"
                 )
@@ -112,3 +120,29 @@ def trajectory_shapes(program, dynamic, first: dict, motion, theta: dict) -> dic
             f"axis {key!r}, or pass trajectory={{{key!r}: value}} to jaxbal.sweep "
             f"([motion] {key} = … in a spec)"
         ) from None
+
+
+def trajectory_values(motion, trajectory) -> dict:
+    """The fixed θ ``{name: float64 array}`` of a motion factory.
+
+    Raises:
+        ValueError: θ given with a motion that takes none (a fixed motion, not a
+            factory ``motion(robot, θ)``: it would be ignored), or a value that is not
+            finite; naming the variable.
+    """
+    theta = dict(trajectory or {})
+    if theta and not callable(motion):
+        raise ValueError(
+            f"trajectory={theta!r} is given, but the motion {type(motion).__name__} is fixed "
+            "(not a factory motion(robot, θ)) and takes no trajectory variables: drop it, "
+            "or pass a motion factory such as jaxbal.design.TrapezoidLine"
+        )
+    values = {}
+    for name, value in theta.items():
+        try:
+            values[name] = np.asarray(value, dtype=float)
+        except (TypeError, ValueError):
+            raise ValueError(f"trajectory {name!r} must be numbers, got {value!r}") from None
+        if not np.all(np.isfinite(values[name])):
+            raise ValueError(f"trajectory {name!r} must be finite, got {value!r}")
+    return values

@@ -18,11 +18,11 @@ def _label(dataset, name: str) -> str:
 
 def _reduce(data, keep: int, how: str):
     """``data`` with every dimension after the first ``keep`` reduced by ``how``."""
+    if how not in _REDUCERS:  # also when nothing is reduced: a typo is a typo
+        raise ValueError(f"unknown reduction {how!r}; choose one of {sorted(_REDUCERS)}")
     extra = list(data.dims[keep:])
     if not extra:
         return data, ""
-    if how not in _REDUCERS:
-        raise ValueError(f"unknown reduction {how!r}; choose one of {sorted(_REDUCERS)}")
     reduced = data.reduce(_REDUCERS[how], dim=extra)
     return reduced, f" ({how} over {', '.join(extra)})"
 

@@ -227,15 +227,25 @@ def _axis(name: str, table: dict):
         raise ValueError(f"{where} needs exactly one of 'values', 'linspace' or 'sample'")
     if "linspace" in table:
         spec = table["linspace"]
-        if not (isinstance(spec, list) and len(spec) == 3 and int(spec[2]) == spec[2] > 0):
-            raise ValueError(f"{where} linspace must be [start, stop, count], got {spec!r}")
+        if not (
+            isinstance(spec, list) and len(spec) == 3 and all(_is_number(v) for v in spec)
+            and np.all(np.isfinite(spec)) and spec[2] == int(spec[2])
+            and 1 <= spec[2] <= sweep_axes.MAX_POINTS
+        ):  # fmt: skip
+            raise ValueError(
+                f"{where} linspace must be [start, stop, count], finite, count an integer "
+                f"from 1 to {sweep_axes.MAX_POINTS:.0e}, got {spec!r}"
+            )
         values = np.linspace(float(spec[0]), float(spec[1]), int(spec[2]))
     else:
         values = table["values"]
     units = table.get("units", "")
     if not isinstance(units, str):
         raise ValueError(f"{where} units must be a string, got {units!r}")
-    return sweep_axes.grid(values, units=units)
+    try:
+        return sweep_axes.grid(values, units=units)
+    except ValueError as error:  # NaN, empty or not numbers
+        raise ValueError(f"{where} {error}") from None
 
 
 def _metric(metric):

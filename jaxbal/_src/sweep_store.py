@@ -18,7 +18,10 @@ of every value and every piece of code the sweep depends on — the axes, the ou
 shapes, the robot, the motion, the fixed θ, and the metric and the axes' setters by
 their code (:mod:`jaxbal._src.sweep_digest`), with the digest of each part; a resumed
 sweep must match it, so a store resumed with another robot, motion, metric body or
-setter is refused, naming what changed, instead of mixing the two.
+setter is refused, naming what changed, instead of mixing the two; so is one resumed
+with other labels, the units of an output, axis or parameter or the names of an
+output's own dimensions (:func:`check_labels`). The group's other attributes
+(``attrs=``) are those of the first call: a resume keeps them.
 """
 
 from __future__ import annotations
@@ -29,7 +32,7 @@ import numpy as np
 
 from jaxbal._src.sweep_axes import Axis, Layout
 
-__all__ = ["MANIFEST", "SweepStore", "open_dataset"]
+__all__ = ["MANIFEST", "SweepStore", "check_labels", "open_dataset"]
 
 #: the group of the store's own records (``done``)
 MANIFEST = "_jaxbal"
@@ -114,9 +117,7 @@ class SweepStore:
     @classmethod
     def open(cls, path) -> SweepStore:
         """An existing store (to resume it)."""
-        import zarr
-
-        group = zarr.open_group(str(path), mode="r+", zarr_format=3)
+        group = _open_group(path, "r+")
         description = describe(group)
         layout = Layout(tuple(description["sizes"]), tuple(description["block"]))
         return cls(group, layout)
@@ -146,6 +147,57 @@ def describe(group) -> dict:
     return description
 
 
+def _open_group(path, mode: str):
+    """The zarr group at ``path``; a folder without one (empty, or not zarr) is refused.
+
+    Raises:
+        ValueError: naming the path (zarr's own message says "No group found in store").
+    """
+    import zarr
+
+    try:
+        return zarr.open_group(str(path), mode=mode, zarr_format=3)
+    except zarr.errors.NodeNotFoundError:
+        raise ValueError(
+            f"{path} is not a jaxbal sweep store (no zarr group in it): remove it or choose "
+            "another path"
+        ) from None
+
+
+def check_labels(path, group, axes: dict, outputs: dict, meta: dict) -> None:
+    """Refuse to resume the store at ``path`` (its ``group``) with other units (of an
+    output, an axis or a parameter) or other names of an output's own dimensions
+    (``output_dims``) than it was written with: the store would keep the old ones.
+
+    Raises:
+        ValueError: naming each label that differs, stored and given.
+    """
+    units, given = meta.get("units", {}), meta.get("output_dims", {})
+    labels = []  # (what, stored, given)
+    for name, spec in outputs.items():
+        array = group[name]
+        labels.append((f"units of {name!r}", array.attrs.get("units", ""), units.get(name, "")))
+        stored = list(array.metadata.dimension_names or ())[len(axes) :]
+        dims = _output_dims(name, tuple(spec.shape), given.get(name))
+        labels.append((f"output_dims of {name!r}", stored, dims))
+    for dim, axis in axes.items():
+        coordinate = _coordinate_units(dim, axis)
+        labels.append((f"units of axis {dim!r}", group[dim].attrs.get("units", ""), coordinate))
+        for name, values in axis.values.items():
+            if not (axis.kind == "grid" and values.ndim == 1):  # stored apart (create)
+                stored = group[parameter_key(dim, name)].attrs.get("units", "")
+                labels.append((f"units of {name!r}", stored, axis.units.get(name, "")))
+    changed = [
+        f"{what} {old!r} in the store, {new!r} now" for what, old, new in labels if old != new
+    ]
+    if changed:
+        raise ValueError(
+            f"{path} was written with other labels: {'; '.join(changed)}. Resume with the "
+            f"same units and output_dims, or start afresh (remove {path} or write another "
+            "store)"
+        )
+
+
 def parameter_key(dim: str, name: str) -> str:
     """Store name of a parameter's values: the parameter's name, or ``NAME_values`` when
     it is the axis's own name (an array-valued grid: the coordinate is then ``0 … n-1``)."""
@@ -173,13 +225,12 @@ def open_dataset(source, *, complete: bool = True):
     """The sweep in ``source`` (a path or a zarr group) as an :class:`xarray.Dataset`,
     loaded into memory; ``complete``: raise if some blocks are not done."""
     import xarray as xr
-    import zarr
 
     group = source
     if isinstance(source, str | Path):
         if not Path(source).exists():
             raise FileNotFoundError(f"no sweep store at {source}")
-        group = zarr.open_group(str(source), mode="r", zarr_format=3)
+        group = _open_group(source, "r")
     description = describe(group)
     done = np.asarray(group[MANIFEST]["done"][:]).astype(bool)
     if complete and not done.all():
