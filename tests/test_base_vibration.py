@@ -356,3 +356,30 @@ def test_a_payload_sweep_loads_the_base(move):
     np.testing.assert_allclose(ds["value"].values, looped, rtol=1e-12)
     assert ds["value"].attrs["units"] == "m" and ds.attrs["metric"] == "residual_vibration"
     assert len(set(np.round(looped, 12))) == 3  # the payload changes it
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_a_non_finite_wrench_sample_is_refused_not_read_as_rest(bad):
+    """One NaN (or inf) force sample gave a residual amplitude of exactly 0 — "the base
+    is at rest" — eagerly and under ``jit`` (the zero-safe square root mapped NaN to 0);
+    ``peak_norm`` skipped the NaN row and returned the finite peak. Now a ValueError
+    naming the sample (eagerly), a runtime error under ``jit``, and a NaN peak under
+    ``jit`` (never a finite number)."""
+    from jaxbal.planning import peak_norm
+    from jaxbal.vibration import base_response, residual_amplitude, rigid_base
+
+    times = jnp.linspace(0.0, 0.4, 41)
+    force = jnp.stack([40 * jnp.sin(30 * times), 25 * jnp.cos(17 * times), 0 * times], -1)
+    moment = jnp.zeros((41, 3))
+    base = rigid_base(300.0, 5.0, 0.02, ("x", "y"))
+    assert np.all(np.asarray(residual_amplitude(base, times, force, moment)) > 1e-6)
+    broken = force.at[20, 0].set(bad)
+    for call in (residual_amplitude, base_response):
+        with pytest.raises(ValueError, match=r"must be finite; not at samples.*20"):
+            call(base, times, broken, moment)
+    with pytest.raises(Exception, match="must be finite"):
+        jax.block_until_ready(jax.jit(lambda f: residual_amplitude(base, times, f, moment))(broken))
+    with pytest.raises(ValueError, match=r"non-finite rows \[20\]"):
+        peak_norm(broken)
+    assert np.isnan(float(jax.jit(peak_norm)(broken)))
+    assert float(peak_norm(force)) > 0

@@ -322,3 +322,25 @@ def test_cli_names_an_unreachable_end_and_refuses_a_move_that_does_not_move(tmp_
     assert far.exit_code == 2 and "out of reach?: end pose [5.0, 5.0]" in far.output, far.output
     still = CliRunner().invoke(app, [*move, "--end", "0.225,0.25"])
     assert still.exit_code == 2 and "does not move the mechanism" in still.output, still.output
+
+
+def test_confirm_refuses_states_whose_error_scale_overflows():
+    """Accelerations of ~1e155 overflowed the error scale to inf, and ``confirm``
+    reported a relative error of 0 — agreement — even for a robot off by 1 cm."""
+    from jaxbal.mujoco import confirm
+
+    arm = jaxbal.robots.planar_2r()
+    q, qd = jnp.array([0.3, 0.5]), jnp.array([1.0, 2.0])
+    assert confirm(arm, q, qd, jnp.array([3.0, -1.0])).force_relative < 1e-12
+    with pytest.raises(ValueError, match="overflow"):
+        confirm(arm, q, qd, jnp.array([3e160, -1e160]))
+
+
+def test_mujoco_actuator_efforts_names_ball_joints():
+    """The Orthoglide's tree has ball joints: a NumPy shape error (18 vs 21) before."""
+    from jaxbal.mujoco import mujoco_actuator_efforts
+
+    robot = jaxbal.robots.orthoglide()
+    u = jnp.zeros(3)
+    with pytest.raises(ValueError, match=r"ball joints \['leg_x', 'leg_y', 'leg_z'\]"):
+        mujoco_actuator_efforts(robot, robot.inverse_kinematics, u, u, u)

@@ -229,7 +229,11 @@ def _stacked(force, moment, count: int) -> Array:
             f"force and moment must each have shape ({count}, 3) (one per time), got "
             f"{jnp.shape(force)} and {jnp.shape(moment)}"
         )
-    return wrench
+    # a NaN sample made the residual amplitude 0 ("at rest"): eagerly a ValueError
+    # naming the samples, under jit a runtime error
+    bad = ~jnp.all(jnp.isfinite(wrench), axis=-1)
+    samples = jnp.arange(count)
+    return guard(wrench, bad, "the shaking wrench must be finite; not at samples", samples)
 
 
 #: Taylor degree and largest number of squarings of :func:`_step_matrix` (its argument
@@ -310,11 +314,16 @@ def base_response(
     Args:
         base: a :class:`BaseModes`.
         times: ``(t,)`` strictly increasing instants [s].
-        force, moment: ``(t, 3)`` shaking force [N] and moment [N·m] at ``times``.
+        force, moment: ``(t, 3)`` shaking force [N] and moment [N·m] at ``times``,
+            without gravity (``shaking_wrench(..., gravity=None)``): the base starts
+            at rest at ``η = 0`` and the wrench is 0 after the last sample, so a
+            constant weight would ring it (a SCARA at rest: 3e-5 m) instead of giving
+            its static sag, which is a separate ``weight / stiffness``.
 
     Raises:
         ValueError: a non-positive or non-finite frequency, a negative damping ratio,
-            times not strictly increasing, wrong shapes (under ``jit``: a runtime error).
+            times not strictly increasing, wrong shapes, a non-finite wrench sample
+            (under ``jit``: a runtime error).
     """
     base, times, wrench = _prepared(base, times, force, moment)
     x, y = _response(base, times, wrench, _uniform(times))

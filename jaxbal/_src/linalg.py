@@ -13,9 +13,11 @@ import jax.numpy as jnp
 
 def safe_sqrt(square):
     """``sqrt(x)`` of ``x ≥ 0`` with a zero (not NaN, not inf) gradient at ``x = 0``
-    (the double ``where``): the zero-safe norms of the metrics and of the base vibration."""
+    (the double ``where``): the zero-safe norms of the metrics and of the base vibration.
+    A NaN stays NaN (it was 0: a NaN wrench sample read as perfectly balanced)."""
     positive = square > 0.0
-    return jnp.where(positive, jnp.sqrt(jnp.where(positive, square, 1.0)), 0.0)
+    rest = jnp.where(jnp.isnan(square), square, 0.0)
+    return jnp.where(positive, jnp.sqrt(jnp.where(positive, square, 1.0)), rest)
 
 
 def matvec(matrix, vector):

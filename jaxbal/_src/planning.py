@@ -299,12 +299,18 @@ def peak_norm(vectors: Float[Array, "t 3"]) -> Float[Array, ""]:
     instant with ``v = 0`` (rest at the ends of a move) gives a zero, not NaN, gradient.
     Vectors above 1e150 are scaled first, so that a finite force of 1e200 N does not
     overflow to inf in its square (values below are computed exactly as before).
+
+    Raises:
+        ValueError: eagerly, a non-finite vector (under ``jit`` the peak is NaN).
     """
     if jnp.ndim(vectors) != 2 or jnp.shape(vectors)[0] == 0:
         raise ValueError(f"vectors must have shape (t, k) with t >= 1, got {jnp.shape(vectors)}")
     if not is_traced(vectors):  # one compiled program, not ~10 eager operations
+        rows = np.flatnonzero(~np.all(np.isfinite(np.asarray(vectors)), axis=-1))
+        if rows.size:  # a NaN row was skipped: the finite peak came back
+            raise ValueError(f"peak_norm: vectors must be finite; non-finite rows {rows}")
         return _peak_norm_compiled(jnp.asarray(vectors))
-    return _peak_norm(vectors)
+    return _peak_norm(vectors)  # a non-finite row gives NaN
 
 
 def _peak_norm(vectors):

@@ -166,6 +166,12 @@ def confirm(
     moment_error = float(np.max(np.abs(np.asarray(moment) - np.asarray(ref_moment))))
     force_scale = max(float(np.max(np.abs(ref_force))), float(gross_force), 1e-300)
     moment_scale = max(float(np.max(np.abs(ref_moment))), float(gross_moment), 1e-300)
+    numbers = (force_error, moment_error, force_scale, moment_scale)
+    if not np.all(np.isfinite(numbers)):  # an overflowed scale made any error "0"
+        raise ValueError(
+            "confirm: the errors or their scales overflow (force, moment error; force, "
+            f"moment scale: {numbers}): the states are too large to compare"
+        )
     return Confirmation(
         force_relative=force_error / force_scale,
         moment_relative=moment_error / moment_scale,

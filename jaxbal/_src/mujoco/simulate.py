@@ -199,6 +199,17 @@ def mujoco_actuator_efforts(robot: Robot, coordinates: Callable, u, ud, udd, tre
 
     tree = robot.mujoco_tree() if tree is None else tree
     compiled = mujoco_model(robot, tree=tree)
+    model = compiled.model
+    balls = [
+        mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_JOINT, j)
+        for j in range(model.njnt)
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_BALL
+    ]
+    if balls:  # qpos (4 per ball) and qvel (3) differ: it was a shape error of NumPy
+        raise ValueError(
+            f"mujoco_actuator_efforts: hinge and slide joints only; the tree of "
+            f"{type(robot).__name__} has ball joints {balls} (use jaxbal.actuator_torques)"
+        )
     u, ud, udd = (jnp.asarray(a, dtype=float) for a in (u, ud, udd))
 
     @jax.jit
