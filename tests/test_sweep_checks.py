@@ -12,26 +12,13 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import xarray as xr
+from test_sweep_inputs import SPEC  # a 2R payload sweep, 9 samples
 from typer.testing import CliRunner
 
 import jaxbal
 from jaxbal._src.cli import app
 from jaxbal._src.sweep_plot import plot_sweep
 from jaxbal.design import motion_samples
-
-SPEC = """
-metric = "peak_force"
-[robot]
-name = "planar_2r"
-[motion]
-start = [0.225, 0.25]
-end = [0.225, 0.70]
-duration = 0.5
-samples = 9
-branch = -1
-[axes.payload]
-values = [0.0, 1.0]
-"""
 
 
 @pytest.fixture(scope="module")
