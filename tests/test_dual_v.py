@@ -424,3 +424,23 @@ def test_bearing_forces_refuse_torques_that_do_not_produce_the_motion():
     np.testing.assert_allclose(
         evaluate(table1, *MOTION).bearing, bearing_forces(table1, *MOTION, tau1), atol=1e-10
     )
+
+
+def test_a_counter_mass_of_no_inertia_stays_physical():
+    """The brass inertia ``about_base − m·d²`` rounded to −3.5e-18 kg·m² for the
+    README's co-designed DUAL-V (counter-masses of no inertia of their own), which
+    jaxbal then refused to evaluate as non-physical. Written without cancellation it
+    is exactly 0, and equals the parallel-axis difference for a tuned counter-mass."""
+    bare = dual_v(counter_masses=False)
+    # m·d² − m·(m·d/m)² rounds to −8.7e-19 for this pair
+    masses, distances = jnp.full(4, 2.8255508412241426), jnp.full(4, 0.028439622365618363)
+    designed = bare.with_design({"counter_mass": masses, "counter_distance": distances})
+    inertia = np.asarray(designed.mass_properties().inertia[:, 2, 2])
+    assert np.all(inertia >= 0.0), inertia
+    q, qd, qdd = jaxbal.pose_motion(designed, *MOTION)
+    assert np.all(np.isfinite(np.asarray(jaxbal.checked_jit(jaxbal.shaking_wrench)(
+        designed, q, qd, qdd)[0])))  # fmt: skip
+    table1 = dual_v()
+    mass, distance, own = table1._brass()
+    about_base = table1.inertia_cm + table1.m_cm * table1.p_cm**2 - table1.m_tun * table1.p_tun**2
+    np.testing.assert_allclose(own, about_base - mass * distance**2, rtol=1e-12)

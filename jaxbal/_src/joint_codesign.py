@@ -78,7 +78,8 @@ class JointSolution(NamedTuple):
         design: every design variable of the optimised robot (name -> array, SI).
         trajectory: the optimised trajectory variables (name -> array).
         robot: the optimised robot (nominal payload).
-        value: final loss (dimensionless); ``initial_value`` at the start.
+        value: final loss (dimensionless); ``initial_value`` where the optimiser starts
+            (a variable on a bound moved just inside it: ~1e-5 off the given design's).
         metrics: name -> ``(before, after)`` over the payloads [SI]: an objective's mean,
             or (``robust="max"``) its smooth maximum, up to ``s log(n)/k`` *below* the
             worst (``payload_metrics``); a constraint-only metric's worst payload.

@@ -203,11 +203,16 @@ class DualV(PlanarRobot):
         return eqx.tree_at(lambda r: (r.m_cm, r.inertia_cm, r.m_tun), self, (zeros, zeros, zeros))
 
     def _brass(self):
+        """Mass, COM distance and own inertia of the brass: the counter-mass less its
+        tuning mass. The inertia is the parallel-axis difference written without
+        cancellation, ``I_cm − m_cm·m_tun·(p_cm − p_tun)² / (m_cm − m_tun)``: as
+        ``about_base − mass·distance²`` it rounded to −3.5e-18 kg·m² for a counter-mass
+        of no inertia, and the co-designed robot was refused as non-physical."""
         mass = self.m_cm - self.m_tun
         moment = self.m_cm * self.p_cm - self.m_tun * self.p_tun
-        distance = moment / jnp.maximum(mass, 1e-12)
-        about_base = self.inertia_cm + self.m_cm * self.p_cm**2 - self.m_tun * self.p_tun**2
-        return mass, distance, about_base - mass * distance**2
+        safe = jnp.maximum(mass, 1e-12)
+        removed = self.m_cm * self.m_tun * (self.p_cm - self.p_tun) ** 2 / safe
+        return mass, moment / safe, self.inertia_cm - removed
 
     # --- the two methods every robot provides ---------------------------------------
 
