@@ -37,3 +37,21 @@ def test_not_converged_when_stopped_early():
     assert not bool(solution.converged)
     assert int(solution.steps) == 1
     assert float(solution.grad_norm) > 1e-3
+
+
+def test_the_iterate_that_met_the_stopping_test_is_returned():
+    """The loop stops on the gradient at the iterate *before* its last update; an update
+    that left the gradient above ``gtol`` (SCARA counter-masses: 1.5e-14 > 1e-14 at the
+    closed-form design) was reported as not converged. Here plain gradient descent
+    overshoots (x -> -1.5 x): the start meets the test, its update does not."""
+    import optax
+
+    gtol = 1e-6
+    start = jnp.array([0.9 * gtol])
+    solution = jaxbal.minimize(
+        lambda x: 0.5 * jnp.sum(x**2), start, optimizer=optax.sgd(2.5), gtol=gtol
+    )
+    assert int(solution.steps) == 1
+    assert bool(solution.converged)
+    np.testing.assert_allclose(solution.params, start)
+    assert float(solution.grad_norm) == float(start[0])

@@ -37,7 +37,8 @@ class Solution(NamedTuple):
         value: final loss value.
         grad_norm: final gradient norm (global L2).
         steps: number of iterations done.
-        converged: whether ``grad_norm <= gtol`` was reached.
+        converged: whether ``grad_norm <= gtol`` was reached (the returned iterate is
+            the one that met it, not a last update that left the gradient above).
         history: ``(max_steps,)`` loss at every iteration (NaN after stopping).
     """
 
@@ -108,11 +109,12 @@ def _run(loss, optimizer, lbfgs: bool, max_steps: int, gtol: float, params, args
     history = jnp.full((max_steps,), jnp.nan)
 
     def cond(carry):
-        _, _, step, grad_norm, _ = carry
+        _, _, step, grad_norm, _, _ = carry
         return (step < max_steps) & (grad_norm > gtol)
 
     def body(carry):
-        params, state, step, _, history = carry
+        params, state, step, _, history, _ = carry
+        before = params
         if value_and_grad is not None:
             value, grad = value_and_grad(params, state=state)
             updates, state = optimizer.update(
@@ -123,11 +125,20 @@ def _run(loss, optimizer, lbfgs: bool, max_steps: int, gtol: float, params, args
             updates, state = optimizer.update(grad, state, params)
         params = optax.apply_updates(params, updates)
         history = history.at[step].set(value)
-        return params, state, step + 1, optax.tree.norm(grad), history
+        return params, state, step + 1, optax.tree.norm(grad), history, before
 
-    carry = (params, state, jnp.asarray(0), jnp.asarray(jnp.inf), history)
-    params, state, steps, _, history = jax.lax.while_loop(cond, body, carry)
+    carry = (params, state, jnp.asarray(0), jnp.asarray(jnp.inf), history, params)
+    params, state, steps, last_norm, history, before = jax.lax.while_loop(cond, body, carry)
     value, grad = jax.value_and_grad(objective)(params)
+    grad_norm = optax.tree.norm(grad)
+    # the loop stops on the gradient at the iterate *before* its last update: where the
+    # update left a gradient above gtol (1.5e-14 > 1e-14: "not converged" after the
+    # test was met), that iterate is returned, converged
+    back = (grad_norm > gtol) & (last_norm <= gtol)
+    params = jax.tree.map(lambda b, p: jnp.where(back, b, p), before, params)
+    value, grad = jax.lax.cond(
+        back, lambda: jax.value_and_grad(objective)(params), lambda: (value, grad)
+    )
     grad_norm = optax.tree.norm(grad)
     return Solution(params, value, grad_norm, steps, grad_norm <= gtol, history)
 
