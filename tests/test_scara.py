@@ -294,3 +294,32 @@ def test_mujoco_confirms_wrench_and_reactionless_motion(unbalanced_wrench):
     forces0, moments0 = unbalanced_wrench
     assert np.max(np.abs(force)) < 1e-9 * float(jnp.max(jnp.abs(forces0)))
     assert np.max(np.abs(moment)) < 1e-9 * float(jnp.max(jnp.abs(moments0)))
+
+
+def test_a_zero_counter_mass_where_no_moment_is_needed_is_accepted():
+    """The nominal SCARA needs no third counter-mass (l_O3S3 = 0): a zero third
+    counter-distance (or mass) was refused eagerly — naming the solved quantity, not the
+    given one — while ``jit`` accepted it; with l_O3S3 > 0 ``jit`` gave 3.8e298 kg."""
+    r_zero = eqx.tree_at(lambda r: r.counter_distances, scara(), jnp.array([0.16, 0.16, 0.0]))
+    eager = sb.force_balanced(r_zero)
+    compiled = jax.jit(sb.force_balanced)(r_zero)
+    np.testing.assert_allclose(compiled.counter_masses, eager.counter_masses, rtol=1e-15)
+    assert float(eager.counter_masses[2]) == 0.0
+    np.testing.assert_allclose(sb.balance_residuals(eager), 0.0, atol=1e-12)
+    m_zero = eqx.tree_at(lambda r: r.counter_masses, scara(), jnp.array([3.0, 2.0, 0.0]))
+    np.testing.assert_allclose(
+        sb.balance_residuals(sb.force_balanced(m_zero, solve_for="distances")), 0.0, atol=1e-12
+    )
+    offset = eqx.tree_at(lambda r: r.com_offsets, r_zero, r_zero.com_offsets.at[2].set(0.02))
+    with pytest.raises(ValueError, match="positive given counter-distances"):
+        sb.force_balanced(offset)
+    with pytest.raises(Exception, match="positive given counter-distances"):
+        jax.block_until_ready(jax.jit(sb.force_balanced)(offset).counter_masses)
+
+
+def test_the_rotation_law_refuses_an_end_effector_of_no_inertia():
+    """J3 = 0 gave φ = -inf and NaN turns without a word."""
+    robot = eqx.tree_at(lambda r: r.inertias, scara(), jnp.array([0.014, 0.036, 0.0]))
+    balanced = sb.force_balanced(robot)
+    with pytest.raises(ValueError, match="J3 > 0"):
+        sb.ReactionlessTrajectory(balanced, paper_move())(0.1)

@@ -49,7 +49,7 @@ from jaxbal._src.optimize import Solution, minimize
 from jaxbal._src.robots.scara import Scara
 from jaxbal._src.trajectory import sample, sample_times
 from jaxbal._src.types import Array, Float, Scalar, ScalarLike
-from jaxbal._src.validation import raise_if_invalid
+from jaxbal._src.validation import guard
 
 __all__ = [
     "ReactionlessTrajectory",
@@ -121,9 +121,9 @@ def force_balanced(robot: Scara, solve_for: str = "masses", vertical: bool = Tru
         raise ValueError(f"solve_for must be 'masses' or 'distances', got {solve_for!r}")
     solve_masses = solve_for == "masses"
     m, s, lengths = robot.masses, robot.com_offsets, robot.lengths
-    given = robot.counter_distances if solve_masses else robot.counter_masses
-    raise_if_invalid(given > 0, f"force balancing needs positive given counter-{solve_for}", given)
-    given = jnp.maximum(given, 1e-300)
+    given_name = "distances" if solve_masses else "masses"  # kept; the others solved
+    given_values = robot.counter_distances if solve_masses else robot.counter_masses
+    given = jnp.maximum(given_values, 1e-300)
     # Condition (1), then (v), (2), (3): each needs the mass carried by the next joint.
     moment3 = m[2] * s[2]
     mc3 = moment3 / given[2] if solve_masses else robot.counter_masses[2]
@@ -134,9 +134,22 @@ def force_balanced(robot: Scara, solve_for: str = "masses", vertical: bool = Tru
     mc2 = moment2 / given[1] if solve_masses else robot.counter_masses[1]
     moment1 = m[0] * s[0] + (m[1] + mc2 + at_o3) * lengths[0]
     moments = jnp.stack([moment1, moment2, moment3])
+    # a given counter-mass (distance) of zero is fine where no static moment is needed
+    # (the nominal SCARA's link 3, l_O3S3 = 0: it was refused eagerly, while jit gave
+    # 3.8e298 kg for l_O3S3 = 0.02); the message names the kept quantity (it named the
+    # solved one)
+    needed = ~((given_values > 0) | (moments == 0))
+    given = guard(
+        given,
+        needed,
+        f"force balancing needs positive given counter-{given_name} where a static "
+        "moment must be balanced",
+        given_values,
+    )
     solved = moments / given
-    raise_if_invalid(
-        solved >= 0,
+    solved = guard(
+        solved,
+        ~(solved >= 0),
         "force balancing needs a counter-mass in front of its joint (negative m_c or r_c)",
         solved,
     )
@@ -195,11 +208,20 @@ def reactionless_orientation(
         theta: ``(2,)`` current ``(θ1, θ2)`` [rad].
         theta_start: ``(2,)`` ``(θ1, θ2)`` at rest at the start of the move [rad].
         phi_start: φ at the start [rad].
+
+    Raises:
+        ValueError: ``J_3 <= 0`` (an end-effector of no axial inertia about O3 cannot
+            absorb the links' angular momentum; it gave φ = ±inf silently), eagerly or
+            under ``jit`` as a runtime error. The robot's force balance is not checked
+            (the paper's printed, rounded design is evaluated with this law): on an
+            unbalanced robot the move is not reactionless.
     """
     j1, j2, j3 = angular_momentum_coefficients(robot)
+    message = "the rotation law needs J3 > 0, the end-effector's axial inertia about O3"
+    j3 = guard(j3, ~(j3 > 0), message, j3)
     d1 = theta[0] - theta_start[0]
     d12 = theta[0] + theta[1] - theta_start[0] - theta_start[1]
-    return phi_start - (j1 * d1 + j2 * d12) / j3
+    return phi_start - (j1 * d1 + j2 * d12) / jnp.where(j3 > 0, j3, jnp.nan)
 
 
 def eq8_orientation(
