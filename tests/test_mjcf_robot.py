@@ -948,3 +948,32 @@ def test_passive_joint_forces_are_refused_unless_ignored(attributes, named, tmp_
     refused = CliRunner().invoke(app, ["balance", str(path), "--site", "tip", "--start",
                                        "0.3,0.2", "--end", "0.25,0.25"])  # fmt: skip
     assert refused.exit_code == 2 and "--ignore-passive" in refused.output
+
+
+SLIDER_CRANK = """
+<mujoco><compiler angle="radian"/><option gravity="0 0 0"/><worldbody>
+<body name="crank" euler="0 0 1.0471975511965976"><joint name="a" axis="0 0 1"/>
+ <inertial pos="0.03 0.005 0" mass="0.5" diaginertia="1e-4 1e-3 1e-3"/>
+ <body name="rod" pos="0.1 0 0" euler="0 0 -1.3400403229251732"><joint name="p" axis="0 0 1"/>
+  <inertial pos="0.12 0 0.01" mass="0.3" diaginertia="1e-5 2e-3 2e-3"/></body></body>
+<body name="slider" pos="0.3372281323269014 0 0"><joint name="s" type="slide" axis="1 0 0"/>
+ <inertial pos="0 0 0" mass="1.2" diaginertia="1e-3 1e-3 1e-3"/><site name="tip"/></body>
+</worldbody><equality><connect body1="slider" body2="rod" anchor="0 0 0"/></equality>
+<actuator><motor joint="a"/></actuator></mujoco>
+"""
+
+
+def test_a_closed_chains_end_is_closed_from_its_start(tmp_path):
+    """A slider-crank's crank from 120 to 175 degrees (one assembly mode, no dead centre):
+    the end's independent coordinate was closed from the model's reference, landed in
+    the other assembly mode, and the move was refused as leaving the reach."""
+    from jaxbal.robots.mjcf_balancing import configuration_samples
+
+    path = tmp_path / "slider_crank.xml"
+    path.write_text(SLIDER_CRANK)
+    robot = jaxbal.robots.from_mjcf(path)
+    motion = configuration_samples(robot, [1.0472], [2.0], 0.1, 21)
+    start = robot.closure(jnp.array([1.0472]))
+    end = robot.closure(jnp.array([2.0]), guess=start)
+    np.testing.assert_allclose(motion.q[-1], end, atol=1e-9)
+    np.testing.assert_allclose(motion.q[0], start, atol=1e-9)

@@ -181,7 +181,7 @@ CONFIGURATION_ATOL = 1e-9
 
 def _configuration(robot: MjcfRobot, q, what: str) -> jnp.ndarray:
     """All coordinates ``(dof,)`` from ``q``: every coordinate, or (closed chain) the
-    independent ones, closed by Newton from the robot's reference."""
+    independent ones, closed by Newton from the robot's reference (the caller sets it)."""
     q = np.asarray(q, dtype=float)
     independent = len(robot.independent_coordinates)
     if q.ndim != 1 or q.size not in (robot.dof, independent) or not np.all(np.isfinite(q)):
@@ -212,7 +212,8 @@ def configuration_samples(
     Args:
         robot: an :class:`~jaxbal._src.robots.mjcf_robot.MjcfRobot` with a site.
         start, end: ``(dof,)`` configurations, or for a closed chain the independent
-            coordinates [rad, m].
+            coordinates [rad, m] (``start`` closed from the robot's reference, ``end``
+            from ``start``'s configuration: the assembly mode the move starts in).
         duration, count, profile: as :func:`pose_samples`.
 
     Raises:
@@ -220,8 +221,11 @@ def configuration_samples(
             closures; a move that leaves the reach; or one that arrives in another
             assembly mode than ``end`` (the difference named).
     """
-    first, last = _configuration(robot, start, "start"), _configuration(robot, end, "end")
+    first = _configuration(robot, start, "start")
+    # a closed chain's end closed by Newton from the start, not the model's reference:
+    # a slider-crank's crank from 120 to 175 degrees landed in the other assembly mode
     robot = robot.with_reference(first)
+    last = _configuration(robot, end, "end")
     motion = pose_samples(
         robot, robot.end_effector(first), robot.end_effector(last), duration, count, profile
     )
