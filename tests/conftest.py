@@ -75,3 +75,17 @@ def random_states(robot, count, seed=0):
     rates, accelerations = rng.normal(0, 0.5, poses.shape), rng.normal(0, 5, poses.shape)
     motion = jax.jit(jax.vmap(lambda u, v, w: jaxbal.pose_motion(robot, u, v, w)))
     return motion(jnp.asarray(poses), jnp.asarray(rates), jnp.asarray(accelerations))
+
+
+def com_move_2r(samples: int):
+    """``(robot, motion)``: the 2R's bang-bang COM move P5 → P9 (elbow down, 0.5 s) at
+    ``samples`` instants, the sweep tests' robot and motion."""
+    import jax.numpy as jnp
+
+    from jaxbal.design import motion_samples
+
+    robot = jaxbal.robots.planar_2r()
+    q0 = robot.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
+    q1 = robot.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
+    plan = jaxbal.planning.com_line(robot, q0, q1, jaxbal.profiles.BangBang(), 0.5)
+    return robot, motion_samples(robot, [plan], jaxbal.sample_times(0.5, samples))

@@ -19,6 +19,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import zarr
+from conftest import com_move_2r
 
 import jaxbal
 from jaxbal.design import METRICS, motion_samples
@@ -58,11 +59,7 @@ def _json(out) -> dict:
 
 @pytest.fixture(scope="module")
 def arm():
-    robot = jaxbal.robots.planar_2r()
-    q0 = robot.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
-    q1 = robot.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
-    plan = jaxbal.planning.com_line(robot, q0, q1, jaxbal.profiles.BangBang(), 0.5)
-    return robot, motion_samples(robot, [plan], jaxbal.sample_times(0.5, 32))
+    return com_move_2r(32)
 
 
 def _with(robot, **design):

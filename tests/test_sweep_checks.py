@@ -12,22 +12,18 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 import xarray as xr
+from conftest import com_move_2r
 from test_sweep_inputs import SPEC  # a 2R payload sweep, 9 samples
 from typer.testing import CliRunner
 
 import jaxbal
 from jaxbal._src.cli import app
 from jaxbal._src.sweep_plot import plot_sweep
-from jaxbal.design import motion_samples
 
 
 @pytest.fixture(scope="module")
 def arm():
-    robot = jaxbal.robots.planar_2r()
-    q0 = robot.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
-    q1 = robot.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
-    plan = jaxbal.planning.com_line(robot, q0, q1, jaxbal.profiles.BangBang(), 0.5)
-    return robot, motion_samples(robot, [plan], jaxbal.sample_times(0.5, 9))
+    return com_move_2r(9)
 
 
 def _payloads(robot, motion):

@@ -20,6 +20,7 @@ import equinox as eqx
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import com_move_2r
 from typer.testing import CliRunner
 
 import jaxbal
@@ -47,11 +48,7 @@ def setter(r, v):
 
 @pytest.fixture(scope="module")
 def arm():
-    robot = jaxbal.robots.planar_2r()
-    q0 = robot.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
-    q1 = robot.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
-    plan = jaxbal.planning.com_line(robot, q0, q1, jaxbal.profiles.BangBang(), 0.5)
-    return robot, motion_samples(robot, [plan], jaxbal.sample_times(0.5, 16))
+    return com_move_2r(16)
 
 
 def _user(index=0, body="1.0 * x") -> dict:

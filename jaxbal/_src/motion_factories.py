@@ -35,12 +35,17 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.motion_samples import JerkMotion, Motion
-from jaxbal._src.planning import JOIN_TOLERANCE, EndEffectorLine, body_gap, com_plan
+from jaxbal._src.planning import (
+    JOIN_TOLERANCE,
+    EndEffectorLine,
+    body_gap,
+    com_plan,
+    guard_joined,
+)
 from jaxbal._src.profiles import BoundaryPolynomial, TrapezoidalAcceleration
 from jaxbal._src.robot import Robot
 from jaxbal._src.robot_checks import check_robot
@@ -108,13 +113,7 @@ def _joins(robot: Robot, motion, q_start, q_end, last: int):
         "the branch of the COM inverse kinematics these configurations are on (or the "
         "design nearly balances the force: its COM barely moves, so no COM plan joins them)"
     )
-    ok = gaps <= JOIN_TOLERANCE
-    # with the runtime checks off (a co-design's compiled programs) a motion that does
-    # not join is NaN, so an optimiser sees an invalid design: a force-balancing design
-    # fixes the COM, and the finite motion of its degenerate COM plan was optimised and
-    # reported as the move's
-    motion = jax.tree.map(lambda x: jnp.where(jnp.all(ok), x, jnp.nan), motion)
-    return guard(motion, ~ok, message, gaps)
+    return guard_joined(motion, gaps, message)
 
 
 def check_planned(robot: Robot, factory, theta, payloads) -> None:

@@ -216,11 +216,20 @@ def _guard_joins(plan: ComLine, q_start, q_end) -> ComLine:
     branch planned the other working mode silently, the peak moment 4.2 for 22.7 N·m).
     With the runtime checks off (an optimiser's programs) a plan that does not join is
     NaN, so the optimiser sees an invalid point."""
-    gaps = join_gaps(plan, q_start, q_end)
-    joined = jnp.all(gaps <= JOIN_TOLERANCE)
-    start = jnp.where(joined, plan.line.start, jnp.nan)
-    start = guard(start, ~joined, _NOT_JOINED.format(branch=plan.branch), gaps)
+    message = _NOT_JOINED.format(branch=plan.branch)
+    start = guard_joined(plan.line.start, join_gaps(plan, q_start, q_end), message)
     return eqx.tree_at(lambda p: p.line.start, plan, start)
+
+
+def guard_joined(value, gaps, message: str):
+    """``value`` (a pytree) guarded by the join ``gaps`` [m] ``<=`` :data:`JOIN_TOLERANCE`:
+    a runtime error carrying ``message``; with the runtime checks off (an optimiser's
+    programs) NaN where the plan does not join, so the optimiser sees an invalid point
+    (a force-balancing design fixes the COM, and the finite motion of its degenerate
+    COM plan was optimised and reported as the move's)."""
+    ok = gaps <= JOIN_TOLERANCE
+    value = jax.tree.map(lambda x: jnp.where(jnp.all(ok), x, jnp.nan), value)
+    return guard(value, ~ok, message, gaps)
 
 
 def _joins_with(plan: ComLine, sign: int, q_start, q_end) -> bool:
