@@ -60,7 +60,9 @@ def test_wrench_along_a_newton_solved_plan_is_a_functional_program(orthoglide_pl
     ]
     assert not program.refused
     assert "functional" in program.programs and "callback" not in program.programs
-    bad = eqx.tree_at(lambda p: p.line.end, plan, jnp.array([2.0, 2.0, 2.0]))
+    # a plan on a line of its own (com_line's plans recompute the line from the robot)
+    line = eqx.tree_at(lambda p: p.end, plan.line, jnp.array([2.0, 2.0, 2.0]))
+    bad = jaxbal.planning.ComLine(robot, line, poses=plan.poses)
     with pytest.raises(ValueError, match=r"COM target not reachable.*\d"):
         wrench_along(robot, bad, times)
 

@@ -65,18 +65,24 @@ class ComLine(eqx.Module):
     """Joint motion that moves the total COM on a straight line with a given profile.
 
     Attributes:
-        robot: the robot. Its parameters are leaves, but the COM line's end points
-            (and ``poses``) are computed from it when :func:`com_line` makes the plan:
-            make the plan from the changed robot (e.g. inside the function a sweep or
-            an optimiser calls), not ``eqx.tree_at`` on ``plan.robot`` afterwards,
-            which leaves the line's end points those of the robot before.
+        robot: the robot, whose COM inverse kinematics gives ``q(t)``.
         line: the COM path, a :class:`~jaxbal.trajectory.StraightLine` in the plane
-            (``(2,)`` endpoints) or in space (``(3,)``).
+            (``(2,)`` endpoints) or in space (``(3,)``). Where the plan has
+            ``q_start``/``q_end`` (made by :func:`com_line`), only its profile and
+            duration are used: its end points are recomputed from ``robot`` wherever the
+            plan is evaluated (:meth:`current` gives them).
         free: ``None``, or a callable ``t ↦`` free coordinates (φ for the 3R).
         branch: working mode of the COM inverse kinematics (``+1`` = "+" of eq 10).
         poses: optional straight line of end-effector poses between the same
             configurations: when ``free`` is None, the pose components beyond the COM's
             follow it, and for robots solved numerically it gives Newton's start.
+        q_start, q_end: optional ``(dof,)`` configurations the move joins. Given, the
+            plan follows its robot: ``eqx.tree_at`` on ``plan.robot`` (a sweep, an
+            optimiser) moves the COM line's end points with the robot's masses, and a
+            plan that no longer starts at ``q_start`` and ends at ``q_end`` is refused
+            where it is evaluated (before, the end points stayed those of the robot the
+            plan was made from: a 5 % heavier link 2 started the move 0.08 rad off
+            ``q_start`` and gave a peak moment of 24.1 for 22.9 N·m, silently).
     """
 
     robot: Robot
@@ -84,8 +90,27 @@ class ComLine(eqx.Module):
     free: Callable | None = None
     branch: tuple[int, ...] | int | None = eqx.field(static=True, default=None)
     poses: StraightLine | None = None
+    q_start: Float[Array, " dof"] | None = None
+    q_end: Float[Array, " dof"] | None = None
+
+    def current(self) -> ComLine:
+        """The plan with its COM line (and ``poses``) between the end points of its
+        robot at ``q_start`` and ``q_end`` (the plan itself where it has none)."""
+        if self.q_start is None or self.q_end is None:
+            return self
+        robot, d = self.robot, self.line.start.shape[0]
+        ends = [center_of_mass(robot, q)[:d] for q in (self.q_start, self.q_end)]
+        line = StraightLine(*ends, self.line.profile, self.line.duration)
+        poses = self.poses
+        if poses is not None:
+            ends = [robot.end_effector(q) for q in (self.q_start, self.q_end)]
+            poses = StraightLine(*ends, poses.profile, poses.duration)
+        return dataclasses.replace(self, line=line, poses=poses, q_start=None, q_end=None)
 
     def _solve(self, t, return_valid):
+        return self.current()._solve_line(t, return_valid)
+
+    def _solve_line(self, t, return_valid):
         com = self.line(t)
         free = None if self.free is None else self.free(t)
         guess = None
@@ -101,7 +126,12 @@ class ComLine(eqx.Module):
         )
 
     def __call__(self, t: ScalarLike):
-        return self._solve(t, False)
+        if self.q_start is None or self.q_end is None:
+            return self._solve(t, False)
+        plan = self.current()  # once: join_gaps below evaluates it at both ends
+        gaps = join_gaps(plan, self.q_start, self.q_end)
+        message = _NOT_JOINED.format(branch=self.branch)
+        return guard_joined(plan._solve(t, False), gaps, message)
 
     def valid(self, times: Float[Array, " t"]) -> Float[Array, " t"]:
         """Boolean mask: is the COM target reachable at each time (no exception).
@@ -140,16 +170,15 @@ def com_line(
             evaluated); the plan is checked again where it is evaluated.
     """
     plan = com_plan(robot, q_start, q_end, profile, duration, free, branch, dims)
-    q_start, q_end = (jnp.asarray(q, dtype=float) for q in (q_start, q_end))
-    if not is_traced(robot, q_start, q_end, duration, profile, free):
-        _check_joins(plan, q_start, q_end)
-        return plan
-    return _guard_joins(plan, q_start, q_end)
+    if not is_traced(plan):  # traced, the plan checks its joins where it is evaluated
+        _check_joins(plan, plan.q_start, plan.q_end)
+    return plan
 
 
 def com_plan(robot, q_start, q_end, profile, duration, free=None, branch=None, dims=None):
     """:func:`com_line` without its check that the plan joins ``q_start`` and ``q_end``
-    (for callers that check the sampled motion themselves)."""
+    (for callers that check the sampled motion themselves); the plan still checks its
+    joins where it is evaluated."""
     dims = robot.com_dims if dims is None else dims
     q_start, q_end = (jnp.asarray(q, dtype=float) for q in (q_start, q_end))
     for name, q in (("q_start", q_start), ("q_end", q_end)):
@@ -162,7 +191,8 @@ def com_plan(robot, q_start, q_end, profile, duration, free=None, branch=None, d
     start = center_of_mass(robot, q_start)[:dims]
     end = center_of_mass(robot, q_end)[:dims]
     poses = StraightLine(*_end_effectors(robot, q_start, q_end), profile, duration)
-    return ComLine(robot, StraightLine(start, end, profile, duration), free, branch, poses)
+    line = StraightLine(start, end, profile, duration)
+    return ComLine(robot, line, free, branch, poses, q_start, q_end)
 
 
 #: a COM plan must start and end at its configurations to this tolerance on every
@@ -199,26 +229,15 @@ def _check_joins(plan: ComLine, q_start, q_end) -> None:
     if plan.robot.branch_size == 1:
         signs = [s for s in (1, -1) if _joins_with(plan, s, q_start, q_end)]
         hint = f"; branch={signs[0]} joins them" if signs else "; no branch joins them"
-    raise ValueError(f"{_NOT_JOINED.format(branch=plan.branch)} {gaps.tolist()}{hint}")
+    raise ValueError(f"{_NOT_JOINED.format(branch=plan.branch)}: {gaps.tolist()}{hint}")
 
 
 _NOT_JOINED = (
     "com_line: the COM plan with branch={branch!r} does not start at q_start / end at "
     "q_end: give the branch of the COM inverse kinematics that q_start and q_end are on "
     "(its sign is not the end-effector inverse kinematics'); largest body-COM gap [m] "
-    "at start, end:"
+    "at start, end"
 )
-
-
-def _guard_joins(plan: ComLine, q_start, q_end) -> ComLine:
-    """The traced counterpart of :func:`_check_joins`: the plan's COM start guarded by
-    the join (a runtime error where the plan is evaluated; under ``jit`` the wrong
-    branch planned the other working mode silently, the peak moment 4.2 for 22.7 N·m).
-    With the runtime checks off (an optimiser's programs) a plan that does not join is
-    NaN, so the optimiser sees an invalid point."""
-    message = _NOT_JOINED.format(branch=plan.branch)
-    start = guard_joined(plan.line.start, join_gaps(plan, q_start, q_end), message)
-    return eqx.tree_at(lambda p: p.line.start, plan, start)
 
 
 def guard_joined(value, gaps, message: str):
