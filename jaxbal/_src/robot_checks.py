@@ -34,13 +34,15 @@ def _unphysical(inertia, triangle: bool):
     triangle inequality ``I₁ ≤ I₂ + I₃`` (no mass distribution has it; MuJoCo refuses
     it when compiling). Tested on the seven principal minors of ``I`` (or of
     ``tr(I)/2·1 − I``, PSD exactly when the triangle inequality holds), each to
-    :data:`INERTIA_RTOL` of its scale: no eigendecomposition in the traced checks."""
+    :data:`INERTIA_RTOL` of its scale plus :data:`ROUNDING` kg·m² (a derived inertia
+    that is zero up to rounding, −1.8e-18, passes as a derived mass does; the floor was
+    1e-21 kg·m²): no eigendecomposition in the traced checks."""
     scale = jnp.max(jnp.abs(inertia), axis=(-2, -1)) + ROUNDING
     asymmetric = jnp.max(jnp.abs(inertia - jnp.swapaxes(inertia, -1, -2)), axis=(-2, -1))
     m = 0.5 * (inertia + jnp.swapaxes(inertia, -1, -2))
     if triangle:
         m = 0.5 * jnp.trace(m, axis1=-2, axis2=-1)[..., None, None] * jnp.eye(3) - m
-    tol = INERTIA_RTOL * scale
+    tol = INERTIA_RTOL * scale + ROUNDING
     first = jnp.diagonal(m, axis1=-2, axis2=-1)
     pairs = ((0, 1), (0, 2), (1, 2))
     second = jnp.stack([m[..., i, i] * m[..., j, j] - m[..., i, j] ** 2 for i, j in pairs], -1)

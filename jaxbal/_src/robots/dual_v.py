@@ -214,6 +214,16 @@ class DualV(PlanarRobot):
         removed = self.m_cm * self.m_tun * (self.p_cm - self.p_tun) ** 2 / safe
         return mass, moment / safe, self.inertia_cm - removed
 
+    def _mounted_inertia(self):
+        """Own inertia [kg·m²] of each mounted counter-mass (brass and mounted tuning
+        mass) about its COM, a sum of non-negative terms: as ``about_base − m·d²`` it
+        was −1.8e-18 under ``jit`` for a counter-mass of no own inertia (refused)."""
+        brass_mass, brass_distance, brass_inertia = self._brass()
+        tuning = self.tuning_scale * self.m_tun
+        mounted = jnp.maximum(brass_mass + tuning, 1e-12)
+        offset = brass_distance - self.p_tun
+        return brass_inertia + brass_mass * tuning * offset**2 / mounted
+
     # --- the two methods every robot provides ---------------------------------------
 
     def mass_properties(self) -> Bodies:
@@ -331,10 +341,7 @@ class DualV(PlanarRobot):
         check_shape("design['counter_mass']", mass, (4,))
         check_shape("design['counter_distance']", distance, (4,))
         old_mass = current["counter_mass"]
-        about_own = (
-            self.counter_mass_inertia_about_base() - old_mass * current["counter_distance"] ** 2
-        )
-        inertia = about_own * mass / jnp.maximum(old_mass, 1e-12)
+        inertia = self._mounted_inertia() * mass / jnp.maximum(old_mass, 1e-12)
         return eqx.tree_at(
             lambda r: (r.m_cm, r.p_cm, r.inertia_cm, r.m_tun, r.tuning_scale),
             robot,
