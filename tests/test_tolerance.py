@@ -1,0 +1,147 @@
+"""Machining tolerances and couplings of a design (:func:`jaxbal.sensitivity.tolerance`)
+against closed forms on the 2R: along its COM move the shaking force is affine in each
+counter-mass and in link 1's static moment ``m₀d₀``, so the squared RMS force is a
+parabola in each, whose minimum and level crossings are known exactly."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from conftest import com_move_2r
+
+from jaxbal.design import rms_force, rms_moment
+from jaxbal.sensitivity import tolerance
+
+WRT = ("counter_distance", "counter_mass")
+
+
+@pytest.fixture(scope="module")
+def move():
+    return com_move_2r(101)
+
+
+def _designed(robot, m, d):
+    return robot.with_design({"counter_mass": jnp.asarray(m), "counter_distance": jnp.asarray(d)})
+
+
+def _parabola(f):
+    """``(a, x*, f(x*)²)`` of ``f(x)² = a (x − x*)² + f(x*)²`` from three samples."""
+    q = [f(x) ** 2 for x in (0.0, 1.0, 2.0)]
+    a = (q[2] - 2.0 * q[1] + q[0]) / 2.0
+    best = -((q[1] - q[0]) - a) / (2.0 * a)
+    return a, best, q[0] - a * best**2
+
+
+def test_the_tolerance_of_a_counter_mass_at_its_optimum_is_the_parabolas(move):
+    """Link 2's counter-mass at the RMS optimum (others 0): the metric reaches
+    ``1.01 × value`` at ``m* ± √((1.01² − 1) v² / a)``; the coupling of a variable
+    with the others is ≥ 1; an entry the metric does not see (a counter-mass at joint 1's
+    axis, d₀ = 0, and that axis distance for m₀ = 0) has coupling NaN and an open
+    interval up to its bound and the reach."""
+    robot, motion = move
+
+    def rms(m):
+        return float(rms_force(_designed(robot, [0.0, m], [0.0, 0.1]), motion))
+
+    a, best, floor = _parabola(rms)
+    design = _designed(robot, [0.0, best], [0.0, 0.1])
+    result = tolerance(design, motion, "rms_force", wrt=WRT)
+    value = np.sqrt(floor)
+    assert result.value == pytest.approx(value, rel=1e-10)
+    expected = np.sqrt((1.01**2 - 1.0) * value**2 / a)
+    below, above = result.interval["counter_mass"]
+    np.testing.assert_allclose([below[1], above[1]], [expected, expected], rtol=1e-7)
+    for end in (best - below[1], best + above[1]):
+        assert rms(end) == pytest.approx(result.threshold, rel=1e-8)
+    assert not np.any(result.open["counter_mass"][1][1:]) and result.open["counter_mass"][0][0]
+    assert result.interval["counter_mass"][0][0] == 0.0  # at its bound, 0 kg
+    assert result.interval["counter_mass"][1][0] == pytest.approx(10.0)  # the reach
+    assert np.isnan(result.coupling["counter_mass"][0])
+    assert np.isnan(result.coupling["counter_distance"][0])
+    assert 1.0 <= result.coupling["counter_mass"][1] < 10.0
+    assert result.labels == (
+        "counter_distance[0]",
+        "counter_distance[1]",
+        "counter_mass[0]",
+        "counter_mass[1]",
+    )
+    assert "counter_mass[1]" in result.table()
+
+
+def test_the_coupling_is_that_of_a_finite_difference_hessian(move):
+    """``√(H_ii (H⁻¹)_ii)`` with H from exact differences of the squared metric. The
+    RMS moment is a norm of a moment affine in the counter-masses, which cannot cancel
+    it (they add inertia): convex, H positive definite (the RMS force is not: two
+    counter-masses balance the 2R, and H is singular along the line to that design)."""
+    robot, motion = move
+    distances = [0.1, 0.12]
+    x0 = np.array([2.0, 4.0])
+    result = tolerance(_designed(robot, x0, distances), motion, "rms_moment", wrt=("counter_mass",))
+
+    def q(x):  # the squared RMS moment: exactly quadratic, so differences are exact
+        return float(rms_moment(_designed(robot, x, distances), motion)) ** 2
+
+    h, eye = 0.5, np.eye(2) * 0.5
+    slope = np.array([(q(x0 + eye[i]) - q(x0 - eye[i])) / (2 * h) for i in range(2)])
+    curve = np.array(
+        [
+            [
+                q(x0 + eye[i] + eye[j])
+                - q(x0 + eye[i] - eye[j])
+                - q(x0 - eye[i] + eye[j])
+                + q(x0 - eye[i] - eye[j])
+                for j in range(2)
+            ]
+            for i in range(2)
+        ]
+    ) / (4 * h * h)
+    f = np.sqrt(q(x0))
+    hessian = curve / (2 * f) - np.outer(slope, slope) / (4 * f**3)  # of f = √q
+    d = 1.0 / np.sqrt(np.diag(hessian))
+    assert np.all(np.linalg.eigvalsh(d[:, None] * hessian * d[None, :]) > 1e-3)
+    np.testing.assert_allclose(result.hessian, hessian, rtol=1e-8)
+    expected = np.sqrt(np.diag(hessian) * np.diag(np.linalg.inv(hessian)))
+    assert np.all(expected > 1.01)  # coupled: the test can tell a coupling from 1
+    np.testing.assert_allclose(result.coupling["counter_mass"], expected, rtol=1e-6)
+    assert 0.0 < result.flattest_curvature < 1.0
+
+
+def test_a_counter_mass_and_its_distance_at_the_base_are_one_flat_direction(move):
+    """Link 1 turns about the fixed base: its counter-mass acts through ``s = m₀d₀``
+    alone. At the optimum of ``s`` the metric is flat along ``(δm₀, δd₀) ∝ (m₀, −d₀)``:
+    both couplings are ``inf``; the Hessian maps that direction to zero. The tolerance
+    of m₀ alone is the parabola's in ``s`` divided by d₀."""
+    robot, motion = move
+    mass = 2.0
+
+    def rms(s):
+        return float(rms_force(_designed(robot, [mass, 0.0], [s / mass, 0.0]), motion))
+
+    a, best, floor = _parabola(rms)
+    assert best > 0
+    design = _designed(robot, [mass, 0.0], [best / mass, 0.0])
+    result = tolerance(design, motion, "rms_force", wrt=WRT)
+    assert np.isinf(result.coupling["counter_mass"][0])
+    assert np.isinf(result.coupling["counter_distance"][0])
+    direction = np.array([-best / mass, 0.0, mass, 0.0])  # (d0, d1, m0, m1) offsets
+    image = result.hessian @ direction
+    assert np.max(np.abs(image)) <= 1e-7 * np.abs(result.hessian).max() * np.abs(direction).max()
+    value = np.sqrt(floor)
+    expected = np.sqrt((1.01**2 - 1.0) * value**2 / a) / (best / mass)
+    np.testing.assert_allclose(result.interval["counter_mass"][1][0], expected, rtol=1e-7)
+
+
+def test_bad_inputs_are_named(move):
+    robot, motion = move
+    design = _designed(robot, [0.0, 2.0], [0.0, 0.1])
+    for kwargs, match in [
+        ({"rise": 0.0}, "rise must be finite and > 0"),
+        ({"rise": float("nan")}, "rise must be finite and > 0"),
+        ({"allowed": -1.0}, "allowed must be finite and > 0"),
+        ({"xtol": 0.0}, "xtol must be finite and > 0"),
+        ({"wrt": ("counter_masses",)}, "unknown design variable"),
+        ({"wrt": ()}, "wrt names no design variable"),
+    ]:
+        with pytest.raises(ValueError, match=match):
+            tolerance(design, motion, "rms_force", **kwargs)
+    with pytest.raises(ValueError, match="unknown metric"):
+        tolerance(design, motion, "rms_forces")
