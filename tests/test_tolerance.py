@@ -105,11 +105,22 @@ def test_the_coupling_is_that_of_a_finite_difference_hessian(move):
     assert 0.0 < result.flattest_curvature < 1.0
 
 
+def _link1_only(robot, motion):
+    """The RMS force with link 2's counter-mass removed: a metric of m₀ and d₀ alone
+    (callable metrics are the user's own objectives)."""
+    design = robot.design()
+    removed = {k: design[k].at[1].set(0.0) for k in ("counter_mass", "counter_distance")}
+    return rms_force(robot.with_design(removed), motion)
+
+
 def test_a_counter_mass_and_its_distance_at_the_base_are_one_flat_direction(move):
     """Link 1 turns about the fixed base: its counter-mass acts through ``s = m₀d₀``
     alone. At the optimum of ``s`` the metric is flat along ``(δm₀, δd₀) ∝ (m₀, −d₀)``:
-    both couplings are ``inf``; the Hessian maps that direction to zero. The tolerance
-    of m₀ alone is the parabola's in ``s`` divided by d₀."""
+    the design is a minimum, both couplings are ``inf``, the flattest direction is
+    that one and the Hessian maps it to zero; the tolerance of m₀ alone is the
+    parabola's in ``s`` divided by d₀. With link 2's counter-mass in the metric (the
+    plain RMS force, m₁ = d₁ = 0) the same design is no minimum: a cross term of d₁,
+    which alone the metric does not see, is indefinite; the couplings are NaN."""
     robot, motion = move
     mass = 2.0
 
@@ -119,15 +130,25 @@ def test_a_counter_mass_and_its_distance_at_the_base_are_one_flat_direction(move
     a, best, floor = _parabola(rms)
     assert best > 0
     design = _designed(robot, [mass, 0.0], [best / mass, 0.0])
-    result = tolerance(design, motion, "rms_force", wrt=WRT)
+    result = tolerance(design, motion, _link1_only, wrt=WRT)
+    assert result.minimum and abs(result.flattest_curvature) < 1e-6
     assert np.isinf(result.coupling["counter_mass"][0])
     assert np.isinf(result.coupling["counter_distance"][0])
+    assert np.isnan(result.coupling["counter_mass"][1])  # not seen by this metric
     direction = np.array([-best / mass, 0.0, mass, 0.0])  # (d0, d1, m0, m1) offsets
     image = result.hessian @ direction
     assert np.max(np.abs(image)) <= 1e-7 * np.abs(result.hessian).max() * np.abs(direction).max()
+    flattest = np.concatenate(
+        [result.flattest["counter_distance"], result.flattest["counter_mass"]]
+    )
+    cosine = flattest @ direction / np.linalg.norm(flattest) / np.linalg.norm(direction)
+    assert abs(cosine) == pytest.approx(1.0, abs=1e-6)
     value = np.sqrt(floor)
     expected = np.sqrt((1.01**2 - 1.0) * value**2 / a) / (best / mass)
     np.testing.assert_allclose(result.interval["counter_mass"][1][0], expected, rtol=1e-7)
+    plain = tolerance(design, motion, "rms_force", wrt=WRT)
+    assert not plain.minimum and np.all(np.isnan(plain.coupling["counter_mass"]))
+    assert "no minimum" in plain.table()
 
 
 def test_bad_inputs_are_named(move):
@@ -145,3 +166,32 @@ def test_bad_inputs_are_named(move):
             tolerance(design, motion, "rms_force", **kwargs)
     with pytest.raises(ValueError, match="unknown metric"):
         tolerance(design, motion, "rms_forces")
+
+
+@pytest.mark.slow
+def test_the_readmes_dual_v_tolerances(capsys):
+    """The README's co-designed DUAL-V block, then its tolerance block: the numbers the
+    README quotes (counter-mass 1: −24 g / +451 g; its distance −0.58 / +10.7 mm)."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parent.parent / "README.md").read_text()
+    blocks = re.findall(r"```python\n(.*?)```", text, re.S)
+    codesign = next(b for b in blocks if "dual_v(counter_masses=False)" in b)
+    scope = {"jnp": jnp, "jaxbal": __import__("jaxbal")}
+    exec(compile(codesign, "README.md", "exec"), scope)
+    exec(
+        compile(next(b for b in blocks if "sensitivity.tolerance" in b), "README.md", "exec"), scope
+    )
+    tol = scope["tol"]
+    np.testing.assert_allclose(
+        [tol.interval["counter_mass"][0][0], tol.interval["counter_mass"][1][0]],
+        [0.024, 0.451],
+        rtol=0.03,
+    )
+    np.testing.assert_allclose(
+        [tol.interval["counter_distance"][0][0], tol.interval["counter_distance"][1][0]],
+        [0.00058, 0.0107],
+        rtol=0.03,
+    )
+    assert not tol.minimum and "counter_mass[0]" in capsys.readouterr().out

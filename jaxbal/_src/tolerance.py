@@ -23,7 +23,10 @@ design that its gradient alone does not tell:
 
 The coupling assumes a smooth metric at a minimum (gradient ≈ 0, e.g. the RMS metrics
 at a co-designed optimum): a peak metric's Hessian is that of its peak sample alone.
-The tolerances hold for any metric.
+Where the Hessian has a negative curvature the design is no minimum of the metric
+(e.g. an optimum of the RMS force *plus* an added-mass term, evaluated on the RMS force
+alone): ``minimum`` is False and the couplings are NaN. The tolerances hold for any
+metric and any design.
 
 References:
     Nocedal & Wright (2006), *Numerical Optimization*, §2.1 (second-order conditions);
@@ -73,6 +76,7 @@ class Tolerance(NamedTuple):
             units of ``max(|x|, 1)``).
         flattest_curvature: its curvature relative to the diagonal (0 flat, 1
             uncoupled; negative: the design is not a minimum).
+        minimum: no curvature below ``−FLAT_RTOL`` of the largest: the couplings apply.
     """
 
     value: float
@@ -85,6 +89,7 @@ class Tolerance(NamedTuple):
     coupling: dict[str, np.ndarray]
     flattest: dict[str, np.ndarray]
     flattest_curvature: float
+    minimum: bool
 
     def table(self) -> str:
         """A plain-text table: entry, −tolerance, +tolerance, coupling (``≥`` where
@@ -101,6 +106,11 @@ class Tolerance(NamedTuple):
                 coupled = float(np.asarray(self.coupling[name])[i])
                 rows.append(f"{self.labels[k]:<24}{cells[0]:>12}{cells[1]:>12}{coupled:>10.3g}")
                 k += 1
+        if not self.minimum:
+            rows.append(
+                f"coupling: n/a, no minimum of the metric (curvature "
+                f"{self.flattest_curvature:.3g} along `flattest`)"
+            )
         return "\n".join(rows)
 
 
@@ -173,7 +183,7 @@ def tolerance(
     below, above, open_below, open_above = _search(
         robot, motion, metric, chosen, x0, g, h, value, threshold, xtol, reach, unravel
     )
-    coupling, flattest, curvature = _coupling(h, x0)
+    coupling, flattest, curvature, minimum = _coupling(h, x0)
 
     def split(flat):  # (n,) -> name -> array of the variable's shape
         return {k: np.asarray(v) for k, v in unravel(flat).items()}
@@ -191,6 +201,7 @@ def tolerance(
         coupling=split(coupling),
         flattest=split(flattest),
         flattest_curvature=curvature,
+        minimum=bool(minimum),
     )
 
 
@@ -265,24 +276,30 @@ def _lower_bounds(robot: Robot, chosen) -> dict[str, np.ndarray]:
 
 
 def _coupling(h, x0):
-    """Couplings ``(n,)``, the flattest direction ``(n,)`` and its relative curvature
-    (module doc)."""
+    """Couplings ``(n,)``, the flattest direction ``(n,)``, its relative curvature and
+    whether the design is a minimum (module doc)."""
     diagonal = np.diag(h)
-    live = diagonal > 0
+    top = np.max(np.abs(diagonal))
+    live = diagonal > FLAT_RTOL * top  # the others: entries the metric hardly sees
     coupling = np.full(x0.size, np.nan)
     flattest = np.zeros(x0.size)
     if not np.any(live):
-        return coupling, flattest, float("nan")
+        return coupling, flattest, float("nan"), False
+    # no minimum: a negative diagonal, or a cross term of a dead entry that no PSD
+    # matrix of these diagonals has (|H_ij|² ≤ H_ii H_jj)
+    cross = np.abs(h[np.ix_(~live, live)]) ** 2 > FLAT_RTOL * top * diagonal[live][None, :]
     d = 1.0 / np.sqrt(diagonal[live])
     scaled = d[:, None] * h[np.ix_(live, live)] * d[None, :]
     curvatures, vectors = np.linalg.eigh(scaled)
+    minimum = curvatures[0] >= -FLAT_RTOL * curvatures[-1]
+    minimum &= not (np.any(diagonal < -FLAT_RTOL * top) or np.any(cross))
     flat = curvatures <= FLAT_RTOL * curvatures[-1]
     with np.errstate(divide="ignore"):
         inverse = np.sum(vectors[:, ~flat] ** 2 / curvatures[~flat], axis=1)
     touched = np.any(np.abs(vectors[:, flat]) > np.sqrt(FLAT_RTOL), axis=1)
-    coupling[live] = np.where(touched, np.inf, np.sqrt(inverse))
+    coupling[live] = np.where(touched, np.inf, np.sqrt(inverse)) if minimum else np.nan
     direction = d * vectors[:, 0]
     scale = np.maximum(np.abs(x0[live]), 1.0)
     direction = direction / np.max(np.abs(direction) / scale)
     flattest[live] = direction * np.sign(direction[np.argmax(np.abs(direction))])
-    return coupling, flattest, float(curvatures[0])
+    return coupling, flattest, float(curvatures[0]), minimum
