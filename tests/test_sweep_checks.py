@@ -128,3 +128,28 @@ def test_resume_or_plot_of_an_empty_folder_says_it_is_no_sweep_store(arm, tmp_pa
         assert result.exit_code == 2, result.output
         assert message in result.output and "No group found" not in result.output
     assert not list(empty.iterdir())
+
+
+def test_output_dims_of_an_unknown_output_an_axis_or_two_sizes_are_refused_first(arm, tmp_path):
+    """``output_dims={"values": …}`` (a typo) was ignored; an output dimension named like
+    an axis, or one name for dimensions of two sizes, was refused by xarray only after
+    every point was computed and stored. Now refused before the store is created."""
+    robot, motion = arm
+    axes = {"payload": jaxbal.sweep.grid([0.0, 1.0])}
+
+    def two(robot, motion):
+        payload = robot.design()["payload"]
+        return {"a": jnp.stack([payload, payload]), "b": jnp.stack([payload] * 3)}
+
+    cases = [
+        (_payloads, {"values": "statistic"}, r"unknown outputs \['values'\]; outputs \['value'\]"),
+        (_payloads, {"value": "payload"}, "'payload' is a sweep axis"),
+        (two, {"a": "k", "b": "k"}, "dimension 'k' has size 3 here and 2"),
+    ]
+    for k, (metric, dims, message) in enumerate(cases):
+        path = tmp_path / f"s{k}.zarr"
+        with pytest.raises(ValueError, match=message):
+            jaxbal.sweep(metric, robot, motion, axes, output_dims=dims, store=path, progress=False)
+        assert not path.exists()
+    fine = jaxbal.sweep(two, robot, motion, axes, output_dims={"a": "i", "b": "j"}, progress=False)
+    assert dict(fine.sizes) == {"payload": 2, "i": 2, "j": 3}

@@ -48,6 +48,34 @@ def _output_dims(name: str, shape: tuple, given) -> list[str]:
     return [f"{name}_dim{i}" for i in range(len(shape))]
 
 
+def check_output_dims(axes: dict, outputs: dict, given: dict) -> None:
+    """Refuse ``output_dims`` (``given``) that names an output the metric does not have
+    (it was ignored), gives an output's dimension an axis's name, or gives one name to
+    dimensions of different sizes (xarray refused the finished sweep, after every point
+    was computed and stored).
+
+    Raises:
+        ValueError: naming the output and the dimension.
+    """
+    unknown = sorted(set(given) - set(outputs))
+    if unknown:
+        raise ValueError(f"output_dims for unknown outputs {unknown}; outputs {sorted(outputs)}")
+    sizes = {}
+    for name, spec in outputs.items():
+        shape = tuple(spec.shape)
+        for dim, size in zip(_output_dims(name, shape, given.get(name)), shape, strict=True):
+            if dim in axes:
+                raise ValueError(
+                    f"output_dims of {name!r}: {dim!r} is a sweep axis ({sorted(axes)}); "
+                    "name the output's own dimension otherwise"
+                )
+            if sizes.setdefault(dim, size) != size:
+                raise ValueError(
+                    f"output_dims of {name!r}: dimension {dim!r} has size {size} here and "
+                    f"{sizes[dim]} in another output; give them different names"
+                )
+
+
 class SweepStore:
     """A sweep's zarr group (local path, or in memory when ``path`` is ``None``)."""
 
@@ -62,6 +90,7 @@ class SweepStore:
         ``units``, ``output_dims``, ``attrs``, ``fingerprint``, ``parts``)."""
         import zarr
 
+        check_output_dims(axes, outputs, meta.get("output_dims", {}))
         store = zarr.storage.MemoryStore() if path is None else str(path)
         group = zarr.open_group(store, mode="w", zarr_format=3)
         dims = list(axes)
@@ -173,6 +202,7 @@ def check_labels(path, group, axes: dict, outputs: dict, meta: dict) -> None:
         ValueError: naming each label that differs, stored and given.
     """
     units, given = meta.get("units", {}), meta.get("output_dims", {})
+    check_output_dims(axes, outputs, given)
     labels = []  # (what, stored, given)
     for name, spec in outputs.items():
         array = group[name]
