@@ -58,6 +58,10 @@ def test_the_tolerance_of_a_counter_mass_at_its_optimum_is_the_parabolas(move):
     assert np.isnan(result.coupling["counter_mass"][0])
     assert np.isnan(result.coupling["counter_distance"][0])
     assert 1.0 <= result.coupling["counter_mass"][1] < 10.0
+    # d₁ is not at its optimum (-47.5 N/m): convex, but no stationary point; the
+    # counter-masses alone are at a minimum (m₀ unseen, m₁ at its optimum)
+    assert result.convex and not result.stationary and not result.minimum
+    assert tolerance(design, motion, "rms_force", wrt=("counter_mass",)).minimum
     assert result.labels == (
         "counter_distance[0]",
         "counter_distance[1]",
@@ -103,6 +107,8 @@ def test_the_coupling_is_that_of_a_finite_difference_hessian(move):
     assert np.all(expected > 1.01)  # coupled: the test can tell a coupling from 1
     np.testing.assert_allclose(result.coupling["counter_mass"], expected, rtol=1e-6)
     assert 0.0 < result.flattest_curvature < 1.0
+    assert result.convex and not result.stationary  # the moment falls with less mass
+    assert "curvature only" in result.table()
 
 
 def _link1_only(robot, motion):

@@ -21,12 +21,13 @@ design that its gradient alone does not tell:
   (offsets in SI units) and ``flattest_curvature`` its curvature relative to the
   diagonal (0 flat, 1 uncoupled): the eigenpair of ``D^-½ H D^-½``, ``D = diag H``.
 
-The coupling assumes a smooth metric at a minimum (gradient ≈ 0, e.g. the RMS metrics
-at a co-designed optimum): a peak metric's Hessian is that of its peak sample alone.
-Where the Hessian has a negative curvature the design is no minimum of the metric
-(e.g. an optimum of the RMS force *plus* an added-mass term, evaluated on the RMS force
-alone): ``minimum`` is False and the couplings are NaN. The tolerances hold for any
-metric and any design.
+The coupling is second-order information: it describes the design where the metric
+is smooth and convex there (``convex``: no negative curvature; else the couplings are
+NaN, e.g. a product ``m·d`` away from its optimum), and it is the tolerance ratio of
+the module doc at a minimum (``minimum``: also ``stationary``, the gradient's share of
+every interval's rise below :data:`STATIONARY_SHARE`, or the entry on its lower bound
+with the gradient pushing it there). A peak metric's Hessian is that of its peak sample
+alone. The tolerances hold for any metric and any design.
 
 References:
     Nocedal & Wright (2006), *Numerical Optimization*, §2.1 (second-order conditions);
@@ -48,11 +49,14 @@ from jaxbal._src.robot import Robot
 from jaxbal._src.sensitivity import _metric_at, _value_and_grad, _values_at
 from jaxbal._src.validation import checked_call, runtime_checks
 
-__all__ = ["FLAT_RTOL", "Tolerance", "tolerance"]
+__all__ = ["FLAT_RTOL", "STATIONARY_SHARE", "Tolerance", "tolerance"]
 
 #: a curvature of ``D^-½ H D^-½`` below this (relative to its largest) counts as flat:
 #: the couplings of the entries along it are ``inf``.
 FLAT_RTOL = 1e-9
+#: a design is stationary when, for every entry off its lower bound, the gradient's
+#: first-order change over the tolerance interval is at most this share of the rise.
+STATIONARY_SHARE = 0.1
 
 
 class Tolerance(NamedTuple):
@@ -75,8 +79,10 @@ class Tolerance(NamedTuple):
         flattest: name -> the offsets of the flattest direction (largest entry 1 in
             units of ``max(|x|, 1)``).
         flattest_curvature: its curvature relative to the diagonal (0 flat, 1
-            uncoupled; negative: the design is not a minimum).
-        minimum: no curvature below ``−FLAT_RTOL`` of the largest: the couplings apply.
+            uncoupled; negative: the Hessian is not convex).
+        convex: no curvature below ``−FLAT_RTOL`` of the largest (couplings given).
+        stationary: the gradient is negligible at the interval scale (module doc).
+        minimum: ``convex and stationary``: the couplings are tolerance ratios.
     """
 
     value: float
@@ -89,7 +95,12 @@ class Tolerance(NamedTuple):
     coupling: dict[str, np.ndarray]
     flattest: dict[str, np.ndarray]
     flattest_curvature: float
-    minimum: bool
+    convex: bool
+    stationary: bool
+
+    @property
+    def minimum(self) -> bool:
+        return self.convex and self.stationary
 
     def table(self) -> str:
         """A plain-text table: entry, −tolerance, +tolerance, coupling (``≥`` where
@@ -106,11 +117,13 @@ class Tolerance(NamedTuple):
                 coupled = float(np.asarray(self.coupling[name])[i])
                 rows.append(f"{self.labels[k]:<24}{cells[0]:>12}{cells[1]:>12}{coupled:>10.3g}")
                 k += 1
-        if not self.minimum:
+        if not self.convex:
             rows.append(
-                f"coupling: n/a, no minimum of the metric (curvature "
-                f"{self.flattest_curvature:.3g} along `flattest`)"
+                f"coupling: n/a, the metric is not convex here (curvature "
+                f"{self.flattest_curvature:.3g} along `flattest`): no minimum"
             )
+        elif not self.stationary:
+            rows.append("coupling: curvature only, no minimum (the gradient dominates)")
         return "\n".join(rows)
 
 
@@ -183,7 +196,12 @@ def tolerance(
     below, above, open_below, open_above = _search(
         robot, motion, metric, chosen, x0, g, h, value, threshold, xtol, reach, unravel
     )
-    coupling, flattest, curvature, minimum = _coupling(h, x0)
+    coupling, flattest, curvature, convex = _coupling(h, x0)
+    lower = np.asarray(ravel_pytree(_lower_bounds(robot, chosen))[0])
+    at_lower = x0 - lower <= xtol * np.maximum(np.abs(x0), 1.0)
+    first_order = np.abs(g) * np.maximum(below, above)
+    pushed = at_lower & (g >= 0)
+    stationary = np.all(pushed | (first_order <= STATIONARY_SHARE * (threshold - value)))
 
     def split(flat):  # (n,) -> name -> array of the variable's shape
         return {k: np.asarray(v) for k, v in unravel(flat).items()}
@@ -201,7 +219,8 @@ def tolerance(
         coupling=split(coupling),
         flattest=split(flattest),
         flattest_curvature=curvature,
-        minimum=bool(minimum),
+        convex=bool(convex),
+        stationary=bool(stationary),
     )
 
 
@@ -277,7 +296,7 @@ def _lower_bounds(robot: Robot, chosen) -> dict[str, np.ndarray]:
 
 def _coupling(h, x0):
     """Couplings ``(n,)``, the flattest direction ``(n,)``, its relative curvature and
-    whether the design is a minimum (module doc)."""
+    whether the Hessian is convex (module doc)."""
     diagonal = np.diag(h)
     top = np.max(np.abs(diagonal))
     live = diagonal > FLAT_RTOL * top  # the others: entries the metric hardly sees
@@ -285,21 +304,21 @@ def _coupling(h, x0):
     flattest = np.zeros(x0.size)
     if not np.any(live):
         return coupling, flattest, float("nan"), False
-    # no minimum: a negative diagonal, or a cross term of a dead entry that no PSD
+    # not convex: a negative diagonal, or a cross term of a dead entry that no PSD
     # matrix of these diagonals has (|H_ij|² ≤ H_ii H_jj)
     cross = np.abs(h[np.ix_(~live, live)]) ** 2 > FLAT_RTOL * top * diagonal[live][None, :]
     d = 1.0 / np.sqrt(diagonal[live])
     scaled = d[:, None] * h[np.ix_(live, live)] * d[None, :]
     curvatures, vectors = np.linalg.eigh(scaled)
-    minimum = curvatures[0] >= -FLAT_RTOL * curvatures[-1]
-    minimum &= not (np.any(diagonal < -FLAT_RTOL * top) or np.any(cross))
+    convex = curvatures[0] >= -FLAT_RTOL * curvatures[-1]
+    convex &= not (np.any(diagonal < -FLAT_RTOL * top) or np.any(cross))
     flat = curvatures <= FLAT_RTOL * curvatures[-1]
     with np.errstate(divide="ignore"):
         inverse = np.sum(vectors[:, ~flat] ** 2 / curvatures[~flat], axis=1)
     touched = np.any(np.abs(vectors[:, flat]) > np.sqrt(FLAT_RTOL), axis=1)
-    coupling[live] = np.where(touched, np.inf, np.sqrt(inverse)) if minimum else np.nan
+    coupling[live] = np.where(touched, np.inf, np.sqrt(inverse)) if convex else np.nan
     direction = d * vectors[:, 0]
     scale = np.maximum(np.abs(x0[live]), 1.0)
     direction = direction / np.max(np.abs(direction) / scale)
     flattest[live] = direction * np.sign(direction[np.argmax(np.abs(direction))])
-    return coupling, flattest, float(curvatures[0]), minimum
+    return coupling, flattest, float(curvatures[0]), convex
