@@ -15,7 +15,7 @@ import pytest
 
 import jaxbal
 from jaxbal.planning import com_line, shaking_peaks
-from jaxbal.profiles import BangBang
+from jaxbal.profiles import BangBang, Quintic
 
 DURATION = 0.5
 TIMES = jnp.linspace(0.0, DURATION, 41)
@@ -99,3 +99,28 @@ def test_a_plan_made_from_a_line_keeps_its_line():
     moved = eqx.tree_at(lambda p: p.robot, plain, heavy)
     assert moved.current() is moved
     np.testing.assert_allclose(moved.line(0.0), made.line.start, atol=0.0)
+
+
+def test_tree_at_on_the_duration_or_profile_moves_the_free_pose_too():
+    """The 3R's φ follows the pose line: ``tree_at`` on ``plan.line.duration`` (or its
+    profile) left that line on the old timing, so φ moved on another clock than the
+    COM (found by a helper in session 38; a shorter duration was refused as not
+    joining, a longer one silently gave another motion)."""
+    arm = jaxbal.robots.planar_3r()
+    q0 = arm.inverse_kinematics(jnp.array([0.4, 0.3, 0.5]))
+    q1 = arm.inverse_kinematics(jnp.array([0.2, 0.5, 1.0]))
+    plan = com_line(arm, q0, q1, BangBang(), 0.2, branch=-1)
+    times = jnp.linspace(0.0, 0.3, 31)
+    longer = eqx.tree_at(lambda p: p.line.duration, plan, jnp.asarray(0.3))
+    fresh = com_line(arm, q0, q1, BangBang(), 0.3, branch=-1)
+    np.testing.assert_allclose(longer(0.15), fresh(0.15), atol=1e-12)
+    np.testing.assert_allclose(
+        np.asarray(shaking_peaks(arm, longer, times)),
+        np.asarray(shaking_peaks(arm, fresh, times)),
+        rtol=1e-12,
+    )
+    shorter = eqx.tree_at(lambda p: p.line.duration, plan, jnp.asarray(0.15))
+    np.testing.assert_allclose(shorter(0.15), q1, atol=1e-12)
+    quintic = eqx.tree_at(lambda p: p.line.profile, plan, Quintic())
+    expected = com_line(arm, q0, q1, Quintic(), 0.2, branch=-1)
+    np.testing.assert_allclose(quintic(0.05), expected(0.05), atol=1e-12)

@@ -94,8 +94,9 @@ class ComLine(eqx.Module):
     q_end: Float[Array, " dof"] | None = None
 
     def current(self) -> ComLine:
-        """The plan with its COM line (and ``poses``) between the end points of its
-        robot at ``q_start`` and ``q_end`` (the plan itself where it has none)."""
+        """The plan with its COM line (and ``poses``, on the line's profile and
+        duration) between the end points of its robot at ``q_start`` and ``q_end`` (the
+        plan itself where it has none)."""
         if self.q_start is None or self.q_end is None:
             return self
         robot, d = self.robot, self.line.start.shape[0]
@@ -104,7 +105,7 @@ class ComLine(eqx.Module):
         poses = self.poses
         if poses is not None:
             ends = [robot.end_effector(q) for q in (self.q_start, self.q_end)]
-            poses = StraightLine(*ends, poses.profile, poses.duration)
+            poses = StraightLine(*ends, self.line.profile, self.line.duration)
         return dataclasses.replace(self, line=line, poses=poses, q_start=None, q_end=None)
 
     def _solve(self, t, return_valid):
