@@ -47,6 +47,7 @@ def test_tree_at_on_the_plans_robot_equals_a_plan_made_from_it(move):
     assert abs(ours[1] - float(shaking_peaks(heavy, plan, TIMES)[1])) > 1e-3
 
 
+@pytest.mark.slow
 def test_a_vmap_sweep_and_a_gradient_through_tree_at_equal_fresh_plans(move):
     arm, q0, q1, plan = move
 
@@ -110,15 +111,10 @@ def test_tree_at_on_the_duration_or_profile_moves_the_free_pose_too():
     q0 = arm.inverse_kinematics(jnp.array([0.4, 0.3, 0.5]))
     q1 = arm.inverse_kinematics(jnp.array([0.2, 0.5, 1.0]))
     plan = com_line(arm, q0, q1, BangBang(), 0.2, branch=-1)
-    times = jnp.linspace(0.0, 0.3, 31)
     longer = eqx.tree_at(lambda p: p.line.duration, plan, jnp.asarray(0.3))
     fresh = com_line(arm, q0, q1, BangBang(), 0.3, branch=-1)
-    np.testing.assert_allclose(longer(0.15), fresh(0.15), atol=1e-12)
-    np.testing.assert_allclose(
-        np.asarray(shaking_peaks(arm, longer, times)),
-        np.asarray(shaking_peaks(arm, fresh, times)),
-        rtol=1e-12,
-    )
+    for t in (0.05, 0.15, 0.25):
+        np.testing.assert_allclose(longer(t), fresh(t), atol=1e-12)
     shorter = eqx.tree_at(lambda p: p.line.duration, plan, jnp.asarray(0.15))
     np.testing.assert_allclose(shorter(0.15), q1, atol=1e-12)
     quintic = eqx.tree_at(lambda p: p.line.profile, plan, Quintic())

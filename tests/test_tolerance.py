@@ -8,7 +8,9 @@ import numpy as np
 import pytest
 from conftest import com_move_2r
 
+import jaxbal
 from jaxbal.design import rms_force, rms_moment
+from jaxbal.profiles import BangBang
 from jaxbal.sensitivity import tolerance
 
 WRT = ("counter_distance", "counter_mass")
@@ -161,10 +163,12 @@ def test_bad_inputs_are_named(move):
     robot, motion = move
     design = _designed(robot, [0.0, 2.0], [0.0, 0.1])
     for kwargs, match in [
-        ({"rise": 0.0}, "rise must be finite and > 0"),
-        ({"rise": float("nan")}, "rise must be finite and > 0"),
-        ({"allowed": -1.0}, "allowed must be finite and > 0"),
-        ({"xtol": 0.0}, "xtol must be finite and > 0"),
+        ({"rise": 0.0}, "rise must be a finite number > 0"),
+        ({"rise": float("nan")}, "rise must be a finite number > 0"),
+        ({"rise": "0.01"}, "rise must be a finite number > 0"),
+        ({"allowed": -1.0}, "allowed must be a finite number > 0"),
+        ({"rise": 0.02, "allowed": 1.0}, "not both"),
+        ({"xtol": 0.0}, "xtol must be a finite number > 0"),
         ({"wrt": ("counter_masses",)}, "unknown design variable"),
         ({"wrt": ()}, "wrt names no design variable"),
     ]:
@@ -201,3 +205,71 @@ def test_the_readmes_dual_v_tolerances(capsys):
         rtol=0.03,
     )
     assert not tol.minimum and "counter_mass[0]" in capsys.readouterr().out
+
+
+def test_a_negative_metric_rises_by_its_magnitude_and_a_zero_one_is_refused(move):
+    """``rms_force − 100`` (negative): the threshold was ``1.01 × value``, below the
+    value, and every interval 0 (helper, session 38); now ``value + rise·|value|``, the
+    intervals of the metric plus a constant. A metric zero up to rounding (a
+    force-balanced 2R's RMS force, ~1e-11 N, gave tolerances of 1e-13 kg) is refused
+    without ``allowed=``; with it the couplings are NaN (a norm at its zero)."""
+    robot, motion = move
+    design = _designed(robot, [2.0, 1.0], [0.35, 0.2])
+    plain = tolerance(design, motion, "rms_force", wrt=("counter_mass",))
+    shifted = tolerance(
+        design,
+        motion,
+        lambda r, m: rms_force(r, m) - 100.0,
+        wrt=("counter_mass",),
+        allowed=plain.threshold - plain.value,
+    )
+    assert shifted.value < 0 and shifted.threshold > shifted.value
+    for a, b in zip(plain.interval["counter_mass"], shifted.interval["counter_mass"], strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-6)
+    negative = tolerance(
+        design, motion, lambda r, m: rms_force(r, m) - 100.0, wrt=("counter_mass",)
+    )
+    assert negative.threshold == pytest.approx(negative.value + 0.01 * abs(negative.value))
+    assert np.all(np.concatenate(negative.interval["counter_mass"]) > 0)
+
+    def tiny(r, m):  # zero up to rounding, as a force-balanced arm's force
+        return 1e-12 * rms_force(r, m)
+
+    with pytest.raises(ValueError, match="zero up to rounding"):
+        tolerance(design, motion, tiny, wrt=("counter_mass",))
+    given = tolerance(design, motion, tiny, wrt=("counter_mass",), allowed=1e-12)
+    assert np.all(np.isnan(given.coupling["counter_mass"])) and "vanishes" in given.table()
+
+
+@pytest.mark.slow
+def test_an_end_where_the_replanned_motion_fails_is_marked_invalid(move):
+    """A COM plan re-planned with the design: beyond d₁ ≈ 1.73 m the COM line leaves
+    the workspace. With the checks off the metric there was finite, and the interval
+    ran past it as if the metric had risen 1 % (it was 0.42 × the threshold; helper,
+    session 38). Now the end is the last valid design, marked ``"invalid"``."""
+    robot, _ = move
+    design = _designed(robot, [2.0, 1.0], [0.1, 0.1])
+    q0 = robot.inverse_kinematics(jnp.array([0.225, 0.25]), branch=-1)
+    q1 = robot.inverse_kinematics(jnp.array([0.225, 0.70]), branch=-1)
+    times = jaxbal.sample_times(0.5, 11)
+
+    def replanned(r):
+        plan = jaxbal.planning.com_line(r, q0, q1, BangBang(), 0.5)
+        return jaxbal.design.motion_samples(r, [plan], times)
+
+    result = tolerance(design, replanned, "rms_force", wrt=("counter_distance",))
+    assert (
+        result.ends["counter_distance"][1][1] == "invalid" and result.open["counter_distance"][1][1]
+    )
+    end = 0.1 + result.interval["counter_distance"][1][1]
+
+    def at(d1):
+        moved = design.with_design({"counter_distance": jnp.array([0.1, d1])})
+        return float(rms_force(moved, replanned(moved)))
+
+    # valid and below the threshold up to the end (at the end itself the COM is on the
+    # workspace's boundary, where the joint rates, ∝ 1/√0, are all rounding)
+    assert at(end - 1e-4) < result.threshold and at(end - 0.5) < result.threshold
+    with pytest.raises(ValueError, match="not reachable"):
+        at(end + 1e-6)
+    assert "x" in result.table()

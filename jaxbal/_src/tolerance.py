@@ -7,9 +7,10 @@ design that its gradient alone does not tell:
   machined 20 g heavy, a distance 1 mm short) before the metric (e.g. the RMS shaking
   force) rises by ``rise`` (default 1 %)? Found on the metric itself, not on a model:
   along each variable, in both directions, steps double from the quadratic estimate
-  until the metric exceeds ``threshold = (1 + rise)·value`` (or ``value + allowed``),
-  then bisection to ``xtol``. A variable's own bound (a mass at 0 kg) or the search
-  reach ends the search first where the metric stays below: ``open`` says so.
+  until the metric exceeds ``threshold = value + rise·|value|`` (or ``value +
+  allowed``), then bisection to ``xtol`` (:mod:`~jaxbal._src.tolerance_search`). A
+  variable's own bound (a mass at 0 kg), the search reach or an invalid design (an
+  unreachable pose) can end the search first: ``ends`` says which.
 * **Coupling.** Does the optimum fix each variable, or can the others make up for it?
   From the Hessian ``H`` of the metric in the variables (SI units) at the design, the
   coupling of entry ``i`` is ``√(H_ii (H⁻¹)_ii) ≥ 1``, unit-free: the tolerance of
@@ -46,10 +47,11 @@ from jax.flatten_util import ravel_pytree
 
 from jaxbal._src.metrics import Metric, Motion, check_design_names, resolve_metric
 from jaxbal._src.robot import Robot
-from jaxbal._src.sensitivity import _metric_at, _value_and_grad, _values_at
-from jaxbal._src.validation import checked_call, runtime_checks
+from jaxbal._src.sensitivity import _metric_at, _value_and_grad
+from jaxbal._src.tolerance_search import ENDS, lower_bounds, search
+from jaxbal._src.validation import checked_call
 
-__all__ = ["FLAT_RTOL", "STATIONARY_SHARE", "Tolerance", "tolerance"]
+__all__ = ["FLAT_RTOL", "STATIONARY_SHARE", "ZERO_METRIC", "Tolerance", "tolerance"]
 
 #: a curvature of ``D^-½ H D^-½`` below this (relative to its largest) counts as flat:
 #: the couplings of the entries along it are ``inf``.
@@ -57,6 +59,9 @@ FLAT_RTOL = 1e-9
 #: a design is stationary when, for every entry off its lower bound, the gradient's
 #: first-order change over the tolerance interval is at most this share of the rise.
 STATIONARY_SHARE = 0.1
+#: a metric at most this [its SI unit: N, N·m, …] is zero up to rounding (a balanced
+#: 2R's RMS force is ~1e-11 N): a relative rise of it means nothing, give ``allowed=``.
+ZERO_METRIC = 1e-9
 
 
 class Tolerance(NamedTuple):
@@ -64,13 +69,16 @@ class Tolerance(NamedTuple):
 
     Attributes:
         value: the metric at the design [its SI unit].
-        threshold: the metric each interval end reaches, ``(1 + rise)·value`` or
+        threshold: the metric each interval end reaches, ``value + rise·|value|`` or
             ``value + allowed``.
         interval: name -> ``(below, above)``, arrays of the variable's shape: the entry
-            alone may move by ``−below … +above`` with the metric at most ``threshold``.
-        open: name -> ``(below, above)`` booleans: the search ended at the variable's
-            bound or reach with the metric still below ``threshold`` (the tolerance is
-            at least that).
+            alone may move by ``−below … +above`` with the metric at most ``threshold``
+            (at the ``1 + SCAN`` points of each side checked; a rise narrower than their
+            spacing can still hide between them).
+        ends: name -> ``(below, above)`` arrays of :data:`ENDS` strings: why each side
+            ended.
+        open: name -> ``(below, above)`` booleans, ``ends != "rise"``: the tolerance
+            is at least the interval (bound, reach) or limited by validity.
         gradient: name -> ``∂metric/∂variable``.
         hessian: ``(n, n)`` second derivatives in the order of ``labels``.
         labels: ``(n,)`` entry names, e.g. ``"counter_masses[1]"``.
@@ -88,6 +96,7 @@ class Tolerance(NamedTuple):
     value: float
     threshold: float
     interval: dict[str, tuple[np.ndarray, np.ndarray]]
+    ends: dict[str, tuple[np.ndarray, np.ndarray]]
     open: dict[str, tuple[np.ndarray, np.ndarray]]
     gradient: dict[str, np.ndarray]
     hessian: np.ndarray
@@ -103,24 +112,29 @@ class Tolerance(NamedTuple):
         return self.convex and self.stationary
 
     def table(self) -> str:
-        """A plain-text table: entry, −tolerance, +tolerance, coupling (``≥`` where
-        the search ended open)."""
-        rows = [f"{'variable':<24}{'-tol':>12}{'+tol':>12}{'coupling':>10}"]
+        """A plain-text table: entry, −tolerance, +tolerance, coupling; an open side is
+        marked ``≥`` and a letter: ``b`` bound, ``r`` reach, ``x`` invalid beyond."""
+        rows = [f"{'variable':<24}{'-tol':>13}{'+tol':>13}{'coupling':>10}"]
+        mark = {"rise": "", "bound": " b", "reach": " r", "invalid": " x"}
         k = 0
         for name, (below, above) in self.interval.items():
-            opened = self.open[name]
+            ends = self.ends[name]
             for i in np.ndindex(np.shape(below)):
                 cells = [
-                    ("≥" if opened[side][i] else "") + f"{bound[i]:.4g}"
+                    ("" if ends[side][i] == "rise" else "≥")
+                    + f"{bound[i]:.4g}"
+                    + mark[ends[side][i]]
                     for side, bound in enumerate((below, above))
                 ]
                 coupled = float(np.asarray(self.coupling[name])[i])
-                rows.append(f"{self.labels[k]:<24}{cells[0]:>12}{cells[1]:>12}{coupled:>10.3g}")
+                rows.append(f"{self.labels[k]:<24}{cells[0]:>13}{cells[1]:>13}{coupled:>10.3g}")
                 k += 1
-        if not self.convex:
+        if abs(self.value) <= ZERO_METRIC:
+            rows.append("coupling: n/a, the metric vanishes here (not smooth at its zero)")
+        elif not self.convex:
             rows.append(
-                f"coupling: n/a, the metric is not convex here (curvature "
-                f"{self.flattest_curvature:.3g} along `flattest`): no minimum"
+                "coupling: n/a, the Hessian is not convex here (a negative curvature, or a "
+                "cross term of an entry it hardly sees): no minimum"
             )
         elif not self.stationary:
             rows.append("coupling: curvature only, no minimum (the gradient dominates)")
@@ -140,7 +154,7 @@ def tolerance(
     metric: Metric = "rms_force",
     *,
     wrt=None,
-    rise: float = 0.01,
+    rise: float | None = None,
     allowed: float | None = None,
     xtol: float = 1e-9,
     reach: float = 10.0,
@@ -154,23 +168,30 @@ def tolerance(
         metric: a metric name (:data:`~jaxbal.design.METRICS`) or a callable
             ``(robot, motion) -> scalar``.
         wrt: design variable names (default: all of the robot's).
-        rise: allowed relative rise of the metric (> 0).
+        rise: allowed rise of the metric relative to ``|value|`` (> 0; default 0.01).
         allowed: instead, the allowed absolute rise [the metric's unit] (> 0; needed
-            where the metric is 0, e.g. a force-balanced robot's peak force).
+            where the metric is zero up to rounding, :data:`ZERO_METRIC`, e.g. a
+            force-balanced robot's force).
         xtol: bisection tolerance, relative to ``max(|x|, 1)`` of each entry.
         reach: farthest search, in units of ``max(|x|, 1)`` of each entry.
 
     Raises:
-        ValueError: an unknown metric or variable name, a non-positive or non-finite
-            ``rise``/``allowed``/``xtol``/``reach``, a metric that is not finite at the
-            design or 0 without ``allowed``, or a non-finite gradient or Hessian.
+        ValueError: an unknown metric or variable name, a ``rise``/``allowed``/
+            ``xtol``/``reach`` that is not a finite number > 0, both ``rise`` and
+            ``allowed``, a metric that is not finite at the design or zero up to
+            rounding without ``allowed``, or a non-finite gradient or Hessian.
     """
     resolve_metric(metric)
-    for name, number in (("rise", rise), ("xtol", xtol), ("reach", reach)):
-        if not (np.isfinite(number) and number > 0):
-            raise ValueError(f"{name} must be finite and > 0, got {number!r}")
-    if allowed is not None and not (np.isfinite(allowed) and allowed > 0):
-        raise ValueError(f"allowed must be finite and > 0 [metric unit], got {allowed!r}")
+    if rise is not None and allowed is not None:
+        raise ValueError(
+            f"give rise= (relative) or allowed= (absolute), not both: {rise}, {allowed}"
+        )
+    numbers = {"rise": rise, "allowed": allowed, "xtol": xtol, "reach": reach}
+    for name, number in numbers.items():
+        real = isinstance(number, int | float | np.number) and not isinstance(number, bool)
+        if number is not None and not (real and np.isfinite(number) and number > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {number!r}")
+    rise = 0.01 if rise is None and allowed is None else rise
     design = robot.design()
     names = tuple(design) if wrt is None else check_design_names(robot, wrt)
     if not names:
@@ -182,9 +203,12 @@ def tolerance(
     value = float(value)
     if not np.isfinite(value):
         raise ValueError(f"{metric!r} is not finite at the design: {value!r}")
-    if allowed is None and value == 0.0:
-        raise ValueError(f"{metric!r} is 0 at the design: give allowed= (an absolute rise)")
-    threshold = value + allowed if allowed is not None else value * (1.0 + rise)
+    if allowed is None and abs(value) <= ZERO_METRIC:
+        raise ValueError(
+            f"{metric!r} is {value!r} at the design, zero up to rounding: a relative rise "
+            "of it means nothing; give allowed= (an absolute rise in the metric's unit)"
+        )
+    threshold = value + allowed if allowed is not None else value + rise * abs(value)
     x0, unravel = ravel_pytree(chosen)
     x0 = np.asarray(x0)
     g = np.asarray(ravel_pytree(gradient)[0])
@@ -193,11 +217,15 @@ def tolerance(
         raise ValueError(f"gradient or Hessian of {metric!r} is not finite: {g!r}, {h!r}")
     h = 0.5 * (h + h.T)
     labels = _labels(chosen)
-    below, above, open_below, open_above = _search(
+    low, ends = search(
         robot, motion, metric, chosen, x0, g, h, value, threshold, xtol, reach, unravel
     )
+    n = x0.size
+    below, above = low[:n], low[n:]
     coupling, flattest, curvature, convex = _coupling(h, x0)
-    lower = np.asarray(ravel_pytree(_lower_bounds(robot, chosen))[0])
+    if abs(value) <= ZERO_METRIC:  # a norm at its zero: no Hessian describes it
+        coupling = np.full(n, np.nan)
+    lower = np.asarray(ravel_pytree(lower_bounds(robot, chosen))[0])
     at_lower = x0 - lower <= xtol * np.maximum(np.abs(x0), 1.0)
     first_order = np.abs(g) * np.maximum(below, above)
     pushed = at_lower & (g >= 0)
@@ -206,13 +234,20 @@ def tolerance(
     def split(flat):  # (n,) -> name -> array of the variable's shape
         return {k: np.asarray(v) for k, v in unravel(flat).items()}
 
-    flags = (open_below.astype(float), open_above.astype(float))
-    lows, highs, opened_low, opened_high = (split(a) for a in (below, above, *flags))
+    lows, highs = split(below), split(above)
+    codes = np.asarray([ENDS.index(e) for e in ends], dtype=float)
+    low_codes, high_codes = split(codes[:n]), split(codes[n:])
+
+    def named(code):
+        return np.asarray(ENDS, dtype=object)[np.asarray(code, dtype=int)]
+
+    end_names = {k: (named(low_codes[k]), named(high_codes[k])) for k in lows}
     return Tolerance(
         value=value,
         threshold=float(threshold),
         interval={k: (lows[k], highs[k]) for k in lows},
-        open={k: (opened_low[k] > 0.5, opened_high[k] > 0.5) for k in lows},
+        ends=end_names,
+        open={k: (v[0] != "rise", v[1] != "rise") for k, v in end_names.items()},
         gradient={k: np.asarray(v) for k, v in gradient.items()},
         hessian=h,
         labels=labels,
@@ -232,66 +267,6 @@ def _labels(chosen) -> tuple[str, ...]:
         else:
             labels += [f"{name}[{', '.join(map(str, i))}]" for i in np.ndindex(np.shape(x))]
     return tuple(labels)
-
-
-def _search(robot, motion, metric, chosen, x0, g, h, value, threshold, xtol, reach, unravel):
-    """Distances ``(n,)`` below and above each entry to the threshold (module doc)."""
-    n = x0.size
-    scale = np.maximum(np.abs(x0), 1.0)
-    lower = ravel_pytree(_lower_bounds(robot, chosen))[0]
-    limit = np.concatenate([np.minimum(x0 - np.asarray(lower), reach * scale), reach * scale])
-    limit = np.maximum(limit, 0.0)
-    sign = np.concatenate([-np.ones(n), np.ones(n)])
-    slope, curve = np.concatenate([-g, g]), np.concatenate([np.diag(h), np.diag(h)])
-    guess = _quadratic_step(slope, curve, threshold - value)
-    usable = np.isfinite(guess) & (guess > 0)
-    step = np.minimum(np.where(usable, guess, 1e-3 * np.tile(scale, 2)), limit)
-
-    def within(steps):
-        points = np.tile(x0, (2 * n, 1))
-        points[np.arange(2 * n), np.tile(np.arange(n), 2)] += sign * steps
-        batch = jax.vmap(unravel)(points)
-        with runtime_checks(False):  # an invalid state is NaN: outside the interval
-            values = np.asarray(_values_at(batch, robot, motion, metric))
-        return values <= threshold  # NaN: False
-
-    low, high = np.zeros(2 * n), np.full(2 * n, np.nan)
-    for _ in range(200):  # expand: 2**200 covers any reach from any first step
-        todo = np.isnan(high) & (low < limit)
-        if not np.any(todo):
-            break
-        ok = within(np.where(todo, step, 0.0))
-        low = np.where(todo & ok, step, low)
-        high = np.where(todo & ~ok, step, high)
-        step = np.where(todo & ok, np.minimum(2.0 * step, limit), step)
-    opened = np.isnan(high)
-    tol = xtol * np.tile(scale, 2)
-    for _ in range(200):
-        todo = ~opened & (high - low > tol)
-        if not np.any(todo):
-            break
-        middle = 0.5 * (low + high)
-        ok = within(np.where(todo, middle, 0.0))
-        low = np.where(todo & ok, middle, low)
-        high = np.where(todo & ~ok, middle, high)
-    return low[:n], low[n:], opened[:n], opened[n:]
-
-
-def _quadratic_step(slope, curve, rise):
-    """Positive root of ``slope·δ + curve·δ²/2 = rise`` (NaN where there is none)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        quadratic = (-slope + np.sqrt(slope**2 + 2.0 * curve * rise)) / curve
-        linear = rise / slope
-    return np.where(np.abs(curve) > 0, quadratic, np.where(slope > 0, linear, np.nan))
-
-
-def _lower_bounds(robot: Robot, chosen) -> dict[str, np.ndarray]:
-    """The robot's own lower bounds of the chosen variables (``-inf`` where none)."""
-    bounds = robot.design_lower_bounds()
-    return {
-        name: np.broadcast_to(np.asarray(bounds.get(name, -np.inf), dtype=float), np.shape(x))
-        for name, x in chosen.items()
-    }
 
 
 def _coupling(h, x0):
