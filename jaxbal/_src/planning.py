@@ -78,11 +78,10 @@ class ComLine(eqx.Module):
             follow it, and for robots solved numerically it gives Newton's start.
         q_start, q_end: optional ``(dof,)`` configurations the move joins. Given, the
             plan follows its robot: ``eqx.tree_at`` on ``plan.robot`` (a sweep, an
-            optimiser) moves the COM line's end points with the robot's masses, and a
-            plan that no longer starts at ``q_start`` and ends at ``q_end`` is refused
-            where it is evaluated (before, the end points stayed those of the robot the
-            plan was made from: a 5 % heavier link 2 started the move 0.08 rad off
-            ``q_start`` and gave a peak moment of 24.1 for 22.9 N·m, silently).
+            optimiser) moves the COM line's end points with it (they stayed the old
+            robot's: 0.08 rad off ``q_start``, peak moment 24.1 for 22.9 N·m, silently),
+            and a plan no longer at ``q_start``/``q_end`` is refused where it is sampled
+            at ``t = 0``/``T`` (:meth:`checked_samples`; a direct ``plan(t)`` is not).
     """
 
     robot: Robot
@@ -127,12 +126,28 @@ class ComLine(eqx.Module):
         )
 
     def __call__(self, t: ScalarLike):
+        return self.resolved()._solve(t, False)
+
+    def resolved(self) -> ComLine:
+        """:meth:`current`, which :func:`jaxbal.trajectory.sample` takes once, outside
+        its ``vmap`` over the instants and their nested ``jvp``."""
+        return self.current()
+
+    def checked_samples(self, times, q):
+        """``q`` ``(t, dof)`` sampled at ``times``, guarded by the join: where the
+        samples include ``t = 0`` (``t = T``), the plan must be at ``q_start``
+        (``q_end``) there, every body's COM within :data:`JOIN_TOLERANCE` (a runtime
+        error, NaN with the checks off): a robot changed after planning can put the COM
+        inverse kinematics on the other working mode. Checked on the samples: solving
+        the ends again cost the first call of a 2R's peak force 2 s of compilation."""
         if self.q_start is None or self.q_end is None:
-            return self._solve(t, False)
-        plan = self.current()  # once: join_gaps below evaluates it at both ends
-        gaps = join_gaps(plan, self.q_start, self.q_end)
-        message = _NOT_JOINED.format(branch=self.branch)
-        return guard_joined(plan._solve(t, False), gaps, message)
+            return q
+        ends = (
+            (times[0] == 0.0, q[0], self.q_start),
+            (times[-1] == self.line.duration, q[-1], self.q_end),
+        )
+        gaps = jnp.stack([jnp.where(at, body_gap(self.robot, a, b), 0.0) for at, a, b in ends])
+        return guard_joined(q, gaps, _NOT_JOINED.format(branch=self.branch))
 
     def valid(self, times: Float[Array, " t"]) -> Float[Array, " t"]:
         """Boolean mask: is the COM target reachable at each time (no exception).
@@ -142,6 +157,7 @@ class ComLine(eqx.Module):
 
 def _valid_mask(plan: ComLine, times):
     """:meth:`ComLine.valid` (module level: compiled once per plan structure)."""
+    plan = plan.current()  # once, outside the vmap
     return jax.vmap(lambda t: plan._solve(t, True)[1])(times)
 
 
@@ -168,10 +184,10 @@ def com_line(
             ``duration`` that is (eagerly) not finite and > 0, or a plan that does not
             start at ``q_start`` and end at ``q_end`` (a COM ``branch`` other than
             theirs: under ``jit``/``vmap``/``grad`` a runtime error where the plan is
-            evaluated); the plan is checked again where it is evaluated.
+            sampled at its ends); the plan is checked again wherever it is sampled.
     """
     plan = com_plan(robot, q_start, q_end, profile, duration, free, branch, dims)
-    if not is_traced(plan):  # traced, the plan checks its joins where it is evaluated
+    if not is_traced(plan):  # traced, the plan checks its joins where it is sampled
         _check_joins(plan, plan.q_start, plan.q_end)
     return plan
 

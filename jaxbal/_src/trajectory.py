@@ -60,7 +60,11 @@ def sample(path: Callable, times: Float[Array, " t"], order: int = 2) -> tuple:
 def _sampled(path: Callable, times, order: int) -> tuple:
     if times.ndim != 1 or times.shape[0] == 0:  # zero instants: a ZeroDivisionError
         raise ValueError(f"times must have shape (t,) with t >= 1 [s], got {times.shape}")
-    return tuple(jax.vmap(lambda t: time_derivatives(path, t, order))(times))
+    resolve = getattr(path, "resolved", None)  # what does not depend on t, done once
+    resolved = resolve() if callable(resolve) else path
+    samples = tuple(jax.vmap(lambda t: time_derivatives(resolved, t, order))(times))
+    check = getattr(path, "checked_samples", None)  # e.g. a COM plan's joins
+    return samples if check is None else (check(times, samples[0]), *samples[1:])
 
 
 def sample_times(duration: ScalarLike, count: int = 1001) -> Float[Array, " t"]:
