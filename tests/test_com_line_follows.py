@@ -40,7 +40,7 @@ def test_tree_at_on_the_plans_robot_equals_a_plan_made_from_it(move):
     fresh = com_line(heavy, q0, q1, BangBang(), DURATION)
     np.testing.assert_allclose(moved(0.0), q0, atol=1e-12)
     np.testing.assert_allclose(moved(DURATION), q1, atol=1e-12)
-    np.testing.assert_allclose(moved.current().line.start, fresh.line.start, atol=1e-15)
+    np.testing.assert_allclose(moved.resolved().line.start, fresh.line.start, atol=1e-15)
     ours = np.asarray(shaking_peaks(heavy, moved, TIMES))
     np.testing.assert_allclose(ours, np.asarray(shaking_peaks(heavy, fresh, TIMES)), rtol=1e-12)
     # the old plan's numbers differ (the test can fail on the stale end points)
@@ -98,7 +98,7 @@ def test_a_plan_made_from_a_line_keeps_its_line():
     plain = jaxbal.planning.ComLine(arm, made.line)
     heavy = _heavier(arm, 1.05)
     moved = eqx.tree_at(lambda p: p.robot, plain, heavy)
-    assert moved.current() is moved
+    assert moved.resolved() is moved
     np.testing.assert_allclose(moved.line(0.0), made.line.start, atol=0.0)
 
 
@@ -120,3 +120,17 @@ def test_tree_at_on_the_duration_or_profile_moves_the_free_pose_too():
     quintic = eqx.tree_at(lambda p: p.line.profile, plan, Quintic())
     expected = com_line(arm, q0, q1, Quintic(), 0.2, branch=-1)
     np.testing.assert_allclose(quintic(0.05), expected(0.05), atol=1e-12)
+
+
+def test_the_end_join_is_checked_where_t_equals_the_duration_in_any_order(move):
+    """A motion factory appends instants inside the jerk phases after ``T``
+    (``ComTrapezoid(per_phase=…)``): the join at ``T`` is checked on the sample at ``T``,
+    wherever it is among the instants, not only on the last one."""
+    arm, q0, q1, plan = move
+    times = jnp.concatenate([TIMES, jnp.array([0.3 * DURATION, 0.6 * DURATION])])
+    q = jaxbal.sample(plan, times, order=0)[0]
+    checked = jax.jit(lambda t, q: plan.checked_samples(t, q))
+    np.testing.assert_array_equal(checked(times, q), q)
+    off = q.at[TIMES.shape[0] - 1].add(0.01)  # the sample at T, not the last one
+    with pytest.raises(Exception, match="does not start at q_start / end at q_end"):
+        jax.block_until_ready(checked(times, off))

@@ -42,9 +42,7 @@ from jaxbal._src.motion_samples import JerkMotion, Motion
 from jaxbal._src.planning import (
     JOIN_TOLERANCE,
     EndEffectorLine,
-    body_gap,
     com_plan,
-    guard_joined,
 )
 from jaxbal._src.profiles import BoundaryPolynomial, TrapezoidalAcceleration
 from jaxbal._src.robot import Robot
@@ -99,21 +97,6 @@ def _sampled(path, times, order: int):
     # the factories call it under a trace (checked_call of their module-level functions)
     samples = sample(path, times, order=order)
     return Motion(*samples) if order == 2 else JerkMotion(*samples)
-
-
-def _joins(robot: Robot, motion, q_start, q_end, last: int):
-    """``motion``, guarded by starting at ``q_start`` and ending at ``q_end`` (the same
-    body positions, so angles differing by 2π agree): a COM inverse kinematics on
-    another branch than these configurations' would make the move jump."""
-    gaps = jnp.stack(
-        [body_gap(robot, motion.q[0], q_start), body_gap(robot, motion.q[last], q_end)]
-    )
-    message = (
-        "ComTrapezoid: the COM plan does not start at q_start / end at q_end [m]; give "
-        "the branch of the COM inverse kinematics these configurations are on (or the "
-        "design nearly balances the force: its COM barely moves, so no COM plan joins them)"
-    )
-    return guard_joined(motion, gaps, message)
 
 
 def check_planned(robot: Robot, factory, theta, payloads) -> None:
@@ -265,5 +248,5 @@ def _line_motion(factory: TrapezoidLine, robot: Robot, theta) -> Motion | JerkMo
 def _com_motion(factory: ComTrapezoid, robot: Robot, theta) -> Motion | JerkMotion:
     """:meth:`ComTrapezoid.__call__` (module level: compiled once per structure)."""
     times, profile, path = factory._plan(robot, theta)
-    motion = _sampled(path, _with_phases(times, profile, factory.per_phase), factory.order)
-    return _joins(robot, motion, factory.q_start, factory.q_end, times.shape[0] - 1)
+    # the plan's joins are checked on its samples at t = 0 and T (ComLine.checked_samples)
+    return _sampled(path, _with_phases(times, profile, factory.per_phase), factory.order)

@@ -70,7 +70,7 @@ class ComLine(eqx.Module):
             (``(2,)`` endpoints) or in space (``(3,)``). Where the plan has
             ``q_start``/``q_end`` (made by :func:`com_line`), only its profile and
             duration are used: its end points are recomputed from ``robot`` wherever the
-            plan is evaluated (:meth:`current` gives them).
+            plan is evaluated (:meth:`resolved` gives them).
         free: ``None``, or a callable ``t ↦`` free coordinates (φ for the 3R).
         branch: working mode of the COM inverse kinematics (``+1`` = "+" of eq 10).
         poses: optional straight line of end-effector poses between the same
@@ -92,10 +92,11 @@ class ComLine(eqx.Module):
     q_start: Float[Array, " dof"] | None = None
     q_end: Float[Array, " dof"] | None = None
 
-    def current(self) -> ComLine:
+    def resolved(self) -> ComLine:
         """The plan with its COM line (and ``poses``, on the line's profile and
         duration) between the end points of its robot at ``q_start`` and ``q_end`` (the
-        plan itself where it has none)."""
+        plan itself where it has none). :func:`jaxbal.trajectory.sample` calls this
+        hook once, outside its ``vmap`` over the instants and their nested ``jvp``."""
         if self.q_start is None or self.q_end is None:
             return self
         robot, d = self.robot, self.line.start.shape[0]
@@ -108,7 +109,7 @@ class ComLine(eqx.Module):
         return dataclasses.replace(self, line=line, poses=poses, q_start=None, q_end=None)
 
     def _solve(self, t, return_valid):
-        return self.current()._solve_line(t, return_valid)
+        return self.resolved()._solve_line(t, return_valid)
 
     def _solve_line(self, t, return_valid):
         com = self.line(t)
@@ -126,27 +127,25 @@ class ComLine(eqx.Module):
         )
 
     def __call__(self, t: ScalarLike):
-        return self.resolved()._solve(t, False)
-
-    def resolved(self) -> ComLine:
-        """:meth:`current`, which :func:`jaxbal.trajectory.sample` takes once, outside
-        its ``vmap`` over the instants and their nested ``jvp``."""
-        return self.current()
+        return self._solve(t, False)
 
     def checked_samples(self, times, q):
-        """``q`` ``(t, dof)`` sampled at ``times``, guarded by the join: where the
-        samples include ``t = 0`` (``t = T``), the plan must be at ``q_start``
+        """``q`` ``(t, dof)`` sampled at ``times``, guarded by the join: where one of
+        ``times`` is ``0`` (the line's duration ``T``), the plan must be at ``q_start``
         (``q_end``) there, every body's COM within :data:`JOIN_TOLERANCE` (a runtime
         error, NaN with the checks off): a robot changed after planning can put the COM
-        inverse kinematics on the other working mode. Checked on the samples: solving
-        the ends again cost the first call of a 2R's peak force 2 s of compilation."""
+        inverse kinematics on the other working mode. ``times`` may be in any order
+        (a motion factory appends instants inside the jerk phases after ``T``).
+        Checked on the samples: solving the ends again cost the first call of a 2R's
+        peak force 2 s of compilation."""
         if self.q_start is None or self.q_end is None:
             return q
-        ends = (
-            (times[0] == 0.0, q[0], self.q_start),
-            (times[-1] == self.line.duration, q[-1], self.q_end),
-        )
-        gaps = jnp.stack([jnp.where(at, body_gap(self.robot, a, b), 0.0) for at, a, b in ends])
+
+        def gap(at_time, q_join):
+            at = times == at_time
+            return jnp.where(jnp.any(at), body_gap(self.robot, q[jnp.argmax(at)], q_join), 0.0)
+
+        gaps = jnp.stack([gap(0.0, self.q_start), gap(self.line.duration, self.q_end)])
         return guard_joined(q, gaps, _NOT_JOINED.format(branch=self.branch))
 
     def valid(self, times: Float[Array, " t"]) -> Float[Array, " t"]:
@@ -157,7 +156,7 @@ class ComLine(eqx.Module):
 
 def _valid_mask(plan: ComLine, times):
     """:meth:`ComLine.valid` (module level: compiled once per plan structure)."""
-    plan = plan.current()  # once, outside the vmap
+    plan = plan.resolved()  # once, outside the vmap
     return jax.vmap(lambda t: plan._solve(t, True)[1])(times)
 
 
@@ -195,7 +194,7 @@ def com_line(
 def com_plan(robot, q_start, q_end, profile, duration, free=None, branch=None, dims=None):
     """:func:`com_line` without its check that the plan joins ``q_start`` and ``q_end``
     (for callers that check the sampled motion themselves); the plan still checks its
-    joins where it is evaluated."""
+    joins where it is sampled (:meth:`ComLine.checked_samples`)."""
     dims = robot.com_dims if dims is None else dims
     q_start, q_end = (jnp.asarray(q, dtype=float) for q in (q_start, q_end))
     for name, q in (("q_start", q_start), ("q_end", q_end)):
@@ -250,10 +249,11 @@ def _check_joins(plan: ComLine, q_start, q_end) -> None:
 
 
 _NOT_JOINED = (
-    "com_line: the COM plan with branch={branch!r} does not start at q_start / end at "
-    "q_end: give the branch of the COM inverse kinematics that q_start and q_end are on "
-    "(its sign is not the end-effector inverse kinematics'); largest body-COM gap [m] "
-    "at start, end"
+    "the COM plan with branch={branch!r} does not start at q_start / end at q_end: give "
+    "the branch of the COM inverse kinematics that q_start and q_end are on (its sign is "
+    "not the end-effector inverse kinematics'), or the design nearly balances the force "
+    "(its COM barely moves, so no COM plan joins them); largest body-COM gap [m] at "
+    "start, end"
 )
 
 
