@@ -345,6 +345,7 @@ def test_a_base_on_springs_in_mujoco_moves_as_predicted():
         assert float(metric(arm, motion)) == pytest.approx(float(ours), rel=1e-13)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_a_payload_sweep_loads_the_base(move):
     """``jaxbal.sweep`` of the residual vibration over the payload (riding on the base,
     ``carries_robot=True``): each point equals the metric of that robot, in metres."""

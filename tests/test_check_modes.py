@@ -45,6 +45,7 @@ def orthoglide_plan():
     return robot, plan, jnp.linspace(0.0, 0.2, 9)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_wrench_along_a_newton_solved_plan_is_a_functional_program(orthoglide_plan):
     """The Newton solves along samples are one loop with a scalar predicate
     (implicit._newton_stack), which checkify accepts: the persistently cacheable

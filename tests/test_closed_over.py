@@ -76,7 +76,13 @@ DUAL_V_LINE = jaxbal.StraightLine(jnp.zeros(3), jnp.array([0.05, 0.05, 0.0]), Qu
 DUAL_V_MOTION = motion_samples(DUAL_V, [EndEffectorLine(DUAL_V, DUAL_V_LINE)], TIMES)
 
 
-@pytest.mark.parametrize("name", ["shaking_wrench", "actuator_torques", "peak_torque"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "shaking_wrench",
+        *(pytest.param(n, marks=pytest.mark.slow) for n in ("actuator_torques", "peak_torque")),
+    ],
+)
 def test_a_closed_chain_closed_over_checks_its_loops_in_the_users_jit(name):
     """The DUAL-V's state and motion closed over (the loop check ran a compiled program
     there and raised ``ConcretizationTypeError``): staged, the eager value; a state or

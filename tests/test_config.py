@@ -6,6 +6,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 SCRIPT = """
 import json, sys, jax, jax.numpy as jnp
 import jaxbal
@@ -45,6 +47,7 @@ def test_default_cache_is_in_the_user_cache_dir_and_is_written(tmp_path):
     assert any(expected.iterdir())  # the compiled wrench was persisted
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_cache_directory_override_and_off(tmp_path):
     chosen = tmp_path / "mine"
     assert _run(tmp_path, str(chosen))["dir"] == str(chosen)

@@ -94,6 +94,7 @@ def test_joint_codesign_refuses_bad_inputs_by_name(arm, move, options, message):
         joint_codesign(arm, move, THETA, "rms_force", **options)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_an_extra_start_takes_only_the_free_variables(arm, move):
     """A solution of another problem (counter distance free, payload 1 kg) as an extra
     start of a multistart that fixes the distance at 0.1 m and the payload at 5 kg: the

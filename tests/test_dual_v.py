@@ -394,6 +394,7 @@ def test_condition_grid_and_drawings():
     plt.close(plot_condition_number(robot, orientations=(0.0,), count=9))
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_bearing_forces_refuse_torques_that_do_not_produce_the_motion():
     """With one distal link 1.5× heavier the paper's torques (eq 10 exact only for equal
     equivalent masses) do not produce the motion: their bearing forces were 3e-2 N·m off

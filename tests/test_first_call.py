@@ -174,6 +174,7 @@ def test_eager_wrench_and_com_are_one_program_each_with_the_eager_errors():
         jaxbal.center_of_mass(huge, state[0])
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_sampling_runs_once_with_fast_compile_options_and_metrics_keep_the_defaults():
     """Sampling a motion (a program that runs once per compilation) is compiled with the
     fast-compile options (LLVM level 0); a metric's program, which sweeps and

@@ -245,6 +245,7 @@ def _flat(value):
     return np.concatenate([np.ravel(np.asarray(x)) for x in jax.tree_util.tree_leaves(value)])
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 @EXPENSIVE
 @given(
     data=st.data(),
@@ -341,8 +342,8 @@ def test_huge_force_does_not_overflow_in_the_norm_regression():
     [
         ("planar_2r", "lengths"),
         pytest.param("scara", "lengths", marks=pytest.mark.slow),
-        ("dual_v", "l2"),
-        ("dual_v", "a"),
+        pytest.param("dual_v", "l2", marks=pytest.mark.slow),
+        pytest.param("dual_v", "a", marks=pytest.mark.slow),
         pytest.param("orthoglide", "length", marks=pytest.mark.slow),
     ],
 )

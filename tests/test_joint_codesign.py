@@ -196,6 +196,7 @@ def test_constraint_excess_is_relative_to_the_bound():
     assert constraint_excess(Solved()) == pytest.approx(1e-3)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_a_design_that_balances_a_com_plan_away_is_refused():
     """The 2R's ComTrapezoid with free counter-masses against the RMS force: the
     optimiser drives the design to force balance, where the COM barely moves and the

@@ -52,6 +52,7 @@ def _everything(robot, motion):
     )
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 @pytest.mark.parametrize("name", slow_for(sorted(CASES), "orthoglide"))
 def test_held_motion_of_a_changed_geometry_is_refused(name):
     """A length changed by 1 % under a held motion: every motion physics function is
@@ -179,6 +180,7 @@ def test_robot_fault_is_named_before_the_loops_it_opens():
         jax.block_until_ready(_everything(mirrored, motion))
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_generalised_forces_and_checks_off_accept_any_state():
     """``inverse_dynamics`` (generalised forces of all coordinates) is defined for any
     state: the bias ``h(q, q̇)`` at ``q̈ = 0`` of a forward dynamics, off the loops, equals

@@ -83,6 +83,7 @@ def test_mujoco_closes_the_coupling_itself_and_agrees():
     assert result.relative < 1e-9 and result.closure_difference < 1e-12, result
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_gradient_of_the_moment_in_the_gear_ratio():
     """d(moment_z)/d(a1) through the coupling's Newton solve (implicit differentiation)
     equals the closed form ``−I_disk q̈`` and central finite differences."""

@@ -683,6 +683,7 @@ def test_counter_masses_written_into_the_users_own_file(five_bar, tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["five_bar_balanced.xml"]
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_balance_reports_the_bounds_it_reached(five_bar):
     """Counter positions boxed in ±2 cm (the start, outside, moved onto the box): the
     cranks' counter-masses need 0.5-1 m arms (unboxed optimum, interior: at_bound all
@@ -743,6 +744,7 @@ def test_cli_balance_force_balances_the_five_bar(tmp_path):
     assert bad.exit_code == 2 and "unknown joint 'zz'" in bad.output
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_armature_is_refused_unless_ignored_also_by_the_cli(tmp_path):
     """Joint armature (MuJoCo Menagerie's arms have it) is refused by default, by
     ``from_mjcf`` and by ``jaxbal balance``; ignored on request, the robot's shaking
@@ -777,6 +779,7 @@ def test_armature_is_refused_unless_ignored_also_by_the_cli(tmp_path):
     assert "balanced peak shaking force" in result.output
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_cli_balance_prints_the_frames_residual_vibration(tmp_path):
     """``--base-mass``/``--base-frequency``: the frame's residual vibration printed for
     the arm's move equals ``jaxbal.vibration``'s of the same motion of the arm without
@@ -809,6 +812,7 @@ def test_cli_balance_prints_the_frames_residual_vibration(tmp_path):
     assert bad.exit_code == 2 and "base frequencies must be finite and > 0" in bad.output
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_keyframe_reference_and_a_singular_start_named_with_its_remedies():
     """``keyframe=`` starts the Newton solves from a ``<key>`` (unknown names listed).
     A move whose pose equations are singular at the start (two coaxial hinges: the

@@ -152,6 +152,7 @@ def test_mjcf_with_a_missing_mesh_loads_without_it():
     np.testing.assert_array_equal(robot.mass, [0.7])
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_cli_balances_a_urdf_arm_by_its_tool_link(tmp_path):
     """``jaxbal balance arm.urdf --body tool --ignore-meshes``: the 2R is force-balanced
     (peak force < 1e-9 of the unbalanced one); without --ignore-meshes it exits 2 with

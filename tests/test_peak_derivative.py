@@ -188,6 +188,7 @@ def test_torque_rate_gradient_equals_reverse_mode_through_every_sample():
     check_grads(new, args, order=1, modes=("fwd", "rev"), eps=1e-5, rtol=1e-6)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_torque_rate_vmap_over_designs_equals_a_loop():
     """Value and gradient of the peak torque rate over a batch of payloads (each with its
     own peak sample and actuator) equal a loop."""

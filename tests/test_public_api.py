@@ -95,6 +95,7 @@ sys.exit(1 if failed else 0)
 """
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_each_public_module_imports_alone():
     """Each module is imported first in an interpreter without any jaxbal module (a
     fork of one that holds only the third-party dependencies, so that the checks cost

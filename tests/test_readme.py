@@ -62,6 +62,7 @@ def test_readme_sweep_example_runs_in_ten_lines(tmp_path, monkeypatch):
     assert (tmp_path / "dual_v_peak_force.png").stat().st_size > 1000
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_readme_vibration_example_leaves_the_base_at_rest():
     """The README's example: the shaped trapezoid's residual vibration is < 1e-9 of the
     starting one, with no added mass (nothing else is free)."""

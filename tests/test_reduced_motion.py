@@ -70,7 +70,7 @@ _METRICS = jax.jit(lambda r, m: [f(r, m) for f in (rms_force, rms_moment, added_
 _GRAD = jax.jit(jax.grad(_loss))
 
 
-@pytest.mark.parametrize("case", ["arm", "dual_v"])
+@pytest.mark.parametrize("case", ["arm", pytest.param("dual_v", marks=pytest.mark.slow)])
 def test_reduced_rms_equals_the_direct_metric(case, request):
     robot, motion = request.getfixturevalue(case)
     reduced = reduce_motion(robot, motion, FREE, ("rms_force", "rms_moment", "added_inertia"))
@@ -130,6 +130,7 @@ def test_a_variable_that_moves_a_frame_is_evaluated_directly(arm):
     assert reduce_motion(moving, motion, ("counter_mass",), ("rms_force",)) is not None
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_reduced_codesign_reaches_the_direct_optimum(arm):
     robot, motion = arm
     objective = {"rms_force": 1.0, "rms_moment": 0.1, "added_mass": 0.1, "added_inertia": 0.1}

@@ -325,6 +325,7 @@ def test_the_rotation_law_refuses_an_end_effector_of_no_inertia():
         sb.ReactionlessTrajectory(balanced, paper_move())(0.1)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_an_exported_balanced_scara_keeps_its_cable():
     """The vertical counterweight's cable (its slide = −d4) was not written to the
     exported MJCF: re-imported, the counterweight stood still and the balanced SCARA

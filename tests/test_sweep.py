@@ -409,6 +409,7 @@ def test_ray_two_workers_equal_local_after_a_worker_is_killed(tmp_path):
     assert result["equal"]
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_sweeps_in_a_loop_keep_a_bounded_number_of_programs(arm, monkeypatch):
     """Each sweep with a new ``where=`` lambda is a program of its own; the module-level
     jits kept every one (thousands in a loop crashed XLA's compiler: the kernel's
@@ -428,6 +429,7 @@ def test_sweeps_in_a_loop_keep_a_bounded_number_of_programs(arm, monkeypatch):
     assert {sweep_affine._linearise, sweep_affine._direct} <= set(sweep_program.PROGRAM_JITS)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_a_swept_geometry_that_opens_the_loops_of_a_fixed_motion_is_refused():
     """The Orthoglide's parallelogram length swept along a motion solved for 0.31 m: the
     states leave the loop closures, and the torques were finite and wrong (3e42 N·m at

@@ -172,6 +172,7 @@ def test_misplaced_or_malformed_spec_keys_exit_2_naming_the_key(tmp_path, base, 
     assert not store.exists()
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_a_failing_runtime_check_prints_one_line_without_jax_traceback(tmp_path, caplog):
     """jax logged a traceback (``jax.pure_callback failed``) and equinox's banner for
     the runtime check before the CLI's error line."""

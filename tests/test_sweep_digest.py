@@ -12,6 +12,7 @@ import textwrap
 import types
 
 import equinox as eqx
+import pytest
 
 from jaxbal._src.sweep_digest import value_digest
 
@@ -78,6 +79,7 @@ def test_a_jitted_helper_of_the_module_enters_by_its_code():
     assert value_digest(user.by_jitted_helper) != before
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_the_digest_is_the_same_in_another_process():
     """Pytree globals and module constants are hashed by content: no address, salted
     hash or object id enters (another ``PYTHONHASHSEED``)."""

@@ -99,6 +99,7 @@ def test_resume_refuses_a_changed_metric_body_setter_or_constant_naming_it(arm, 
     np.testing.assert_array_equal(resumed["value"].values, first["value"].values)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_an_unchanged_script_in_a_new_process_resumes(arm, tmp_path):
     """A store written by a child interpreter (another ``PYTHONHASHSEED``: a set of
     strings iterates in another order) is resumed here by the same source: the code's
@@ -130,6 +131,7 @@ def test_an_unchanged_script_in_a_new_process_resumes(arm, tmp_path):
     assert ds.attrs["blocks_done"].split("/")[0] == ds.attrs["blocks_done"].split("/")[1]
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_a_closed_chain_motion_held_on_a_changed_robot_is_refused_on_the_fast_path():
     """The Orthoglide's parallelograms 1 % longer than the motion was solved for: the
     affine path (default) returned finite, wrong forces; now the metrics' loop-closure

@@ -207,6 +207,7 @@ def test_the_readmes_dual_v_tolerances(capsys):
     assert not tol.minimum and "counter_mass[0]" in capsys.readouterr().out
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_a_negative_metric_rises_by_its_magnitude_and_a_zero_one_is_refused(move):
     """``rms_force − 100`` (negative): the threshold was ``1.01 × value``, below the
     value, and every interval 0 (helper, session 38); now ``value + rise·|value|``, the

@@ -34,7 +34,7 @@ def _path(name):
     return robot, EndEffectorLine(robot, line)
 
 
-@pytest.mark.parametrize("name", slow_for(sorted(CASES), "planar_2r"))
+@pytest.mark.parametrize("name", slow_for(sorted(CASES), "orthoglide"))
 def test_torques_and_rates_are_the_actuators(name):
     """(t, a) actuator torques equal ``actuator_torques`` at the samples; their rates
     equal central differences of the torques in time (h = 1e-5 s). For the Orthoglide

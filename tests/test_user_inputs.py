@@ -169,6 +169,7 @@ def _five_bar(passive_range: str):
     return jaxbal.robots.from_mjcf(xml, end_effector_site="tip")
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_a_solution_outside_a_joint_range_is_refused():
     """A pose whose solution puts a limited joint outside its range (MJCF ``range``, a
     URDF ``<limit>``) came back valid (a slide 26 times past its limit); now the IK
@@ -228,6 +229,7 @@ def test_com_line_on_another_branch_than_its_configurations_is_refused():
         jaxbal.planning.com_line(arm, q0, other, BangBang(), 0.5)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_com_line_on_another_branch_is_refused_under_jit_vmap_and_grad():
     """Under ``jit``, ``vmap`` or ``grad`` (even with respect to the duration alone) the
     join check was skipped and the plan ran silently in the other elbow mode (peak
@@ -284,6 +286,7 @@ def test_zero_sample_instants_are_named():
             call()
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_export_names_counter_masses_the_files_compiler_bounds(tmp_path):
     """A file with ``<compiler boundinertia>``: MuJoCo raises the exported point
     counter-mass's zero inertia to the bound, so the written model shakes otherwise and
@@ -306,6 +309,7 @@ def test_export_names_counter_masses_the_files_compiler_bounds(tmp_path):
     assert "counter_link" in (tmp_path / "out.xml").read_text()
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_cli_names_an_unreachable_end_and_refuses_a_move_that_does_not_move(tmp_path):
     """``jaxbal balance`` on the exported 2R: an end pose out of reach was blamed on the
     singular start alone (the advice pointed the wrong way); a move with ``--start``

@@ -161,6 +161,7 @@ def test_trapezoid_with_a_tiny_jerk_phase_is_the_bang_bang_limit():
     assert jnp.allclose(compiled, s, rtol=0, atol=1e-15)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_non_finite_state_is_named_when_the_check_guards_the_outputs():
     """The state's finiteness guards the wrench / torques computed from it (it is no
     longer threaded through the check, which split the compiled loop): a NaN row in a
