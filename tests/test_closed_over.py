@@ -42,6 +42,7 @@ def test_closed_over_values_stage_into_the_users_jit(name):
     np.testing.assert_allclose(staged, 2.0 * eager, rtol=1e-12, atol=1e-14)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_a_motion_factory_with_a_closed_over_robot_under_jit():
     """The COM plan's end points are centres of mass of the concrete robot (the path of
     the crash), the trajectory parameters traced."""

@@ -6,6 +6,7 @@ flagged, and ``checkify`` accepts the batched program (a plain ``vmap`` of a
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pytest
 from jax.experimental import checkify
 
 from jaxbal import newton_solve
@@ -47,6 +48,7 @@ def test_an_unsolvable_problem_is_flagged_and_leaves_the_others_alone():
         np.testing.assert_allclose(np.asarray(values[i]), np.sqrt(cs[i] * 0.5), rtol=1e-13)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_checkify_accepts_the_batched_solve_and_gradients_are_implicit():
     def total(d):
         return jnp.sum(jax.vmap(lambda c: _solve(c, d)[0])(CS))

@@ -149,6 +149,7 @@ def test_constants_still_fold():
         np.testing.assert_allclose(a, e, rtol=1e-13, atol=1e-16)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_wrench_derivatives_through_the_boundary_equal_the_plain_evaluation():
     """Per-sample gradients (``vmap`` of ``grad``), forward Jacobians and a Hessian of the
     replayed DUAL-V wrench (boundaries inside) equal those of the physics as written."""

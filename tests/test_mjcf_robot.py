@@ -967,6 +967,7 @@ SLIDER_CRANK = """
 """
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_a_closed_chains_end_is_closed_from_its_start(tmp_path):
     """A slider-crank's crank from 120 to 175 degrees (one assembly mode, no dead centre):
     the end's independent coordinate was closed from the model's reference, landed in

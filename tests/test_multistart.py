@@ -45,6 +45,7 @@ def several(problem):
     return multistart_joint_codesign(arm, move, THETA, "rms_force", starts=2, seed=3, **OPTIONS)
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_given_start_is_the_plain_run_and_best_is_the_lowest_feasible(problem, several):
     arm, move = problem
     plain = joint_codesign(arm, move, THETA, "rms_force", **OPTIONS)

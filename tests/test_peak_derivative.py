@@ -160,6 +160,7 @@ def _rates_every_sample(robot, motion):
     return jnp.max(jnp.abs(jax.vmap(lambda *s: torque_rate(robot, *s))(*motion)))
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_torque_rate_gradient_equals_reverse_mode_through_every_sample():
     """The peak torque rate (max over samples and actuators of |dτ_i/dt|) differentiated
     at its peak sample and actuator: the value and the gradient in the design (payload,

@@ -122,6 +122,7 @@ def test_a_store_of_one_evaluation_is_not_resumed_by_the_other(arm, tmp_path):
     assert "evaluation" not in again.attrs
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_a_massless_point_gives_an_exact_zero(arm):
     """Linearised at zero masses: a point whose swept masses are all zero (links and
     payload here, counter-masses zero by default) is an exact zero, as directly (found by

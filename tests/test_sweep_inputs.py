@@ -64,6 +64,7 @@ def _axes(user) -> dict:
     }
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_resume_refuses_a_changed_metric_body_setter_or_constant_naming_it(arm, tmp_path):
     """The store's fingerprint saw ``my_metric``'s name and nothing of the setter: each
     change below resumed and returned the old code's values."""

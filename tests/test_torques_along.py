@@ -64,6 +64,7 @@ def test_torques_and_rates_are_the_actuators(name):
         assert gap > 1e-2 * np.max(np.abs(rates))
 
 
+@pytest.mark.slow  # make test-all (make test's 10-minute budget)
 def test_serial_rates_equal_the_generalised_forces_rates():
     """2R, every coordinate actuated: the actuator rates are the generalised ones."""
     robot, path = _path("planar_2r")
