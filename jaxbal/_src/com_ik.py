@@ -22,7 +22,7 @@ import jax.numpy as jnp
 
 from jaxbal._src.implicit import newton_solve
 from jaxbal._src.momentum import center_of_mass
-from jaxbal._src.validation import guard
+from jaxbal._src.solution_guard import guard_solution
 
 
 def _pose(x, free):
@@ -90,4 +90,4 @@ def numerical_com_inverse_kinematics(
     valid = solution.converged & reachable
     if return_valid:
         return q, valid
-    return guard(q, ~valid, f"COM target not reachable by {type(robot).__name__}", com)
+    return guard_solution(q, ~valid, f"COM target not reachable by {type(robot).__name__}", com)

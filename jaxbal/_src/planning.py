@@ -35,12 +35,12 @@ from jaxbal._src.linalg import safe_sqrt
 from jaxbal._src.momentum import body_com_positions, center_of_mass, shaking_wrench
 from jaxbal._src.profiles import Profile
 from jaxbal._src.robot import Robot
+from jaxbal._src.solution_guard import guard_solution
 from jaxbal._src.trajectory import StraightLine, sample
 from jaxbal._src.types import Array, Float, ScalarLike
 from jaxbal._src.validation import (
     check_shape,
     checked_call,
-    guard,
     is_traced,
     raise_if_invalid,
 )
@@ -263,9 +263,7 @@ def guard_joined(value, gaps, message: str):
     programs) NaN where the plan does not join, so the optimiser sees an invalid point
     (a force-balancing design fixes the COM, and the finite motion of its degenerate
     COM plan was optimised and reported as the move's)."""
-    ok = gaps <= JOIN_TOLERANCE
-    value = jax.tree.map(lambda x: jnp.where(jnp.all(ok), x, jnp.nan), value)
-    return guard(value, ~ok, message, gaps)
+    return guard_solution(value, ~(gaps <= JOIN_TOLERANCE), message, gaps)
 
 
 def _joins_with(plan: ComLine, sign: int, q_start, q_end) -> bool:

@@ -70,8 +70,9 @@ from jaxbal._src.robots.dual_v_layout import (
     PLATFORM_END,
     dual_v_tree,
 )
+from jaxbal._src.solution_guard import guard_solution
 from jaxbal._src.types import Array, Float
-from jaxbal._src.validation import check_nonnegative, check_shape, guard
+from jaxbal._src.validation import check_nonnegative, check_shape
 
 __all__ = ["CROSSED", "OUTWARD", "DualV", "dual_v"]
 
@@ -310,8 +311,7 @@ class DualV(PlanarRobot):
         q = jnp.concatenate([theta1, theta2, pose])
         if return_valid:
             return q, valid
-        message = "DUAL-V platform pose outside the workspace"
-        return guard(q, ~valid, message, pose_given)  # under jit too
+        return guard_solution(q, ~valid, "DUAL-V platform pose outside the workspace", pose_given)
 
     def design(self) -> dict:
         """``counter_mass`` ``(4,)`` [kg]: the mounted counter-masses (tuning fraction

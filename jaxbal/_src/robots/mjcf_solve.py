@@ -24,7 +24,8 @@ import numpy as np
 
 from jaxbal._src.implicit import newton_solve
 from jaxbal._src.robots.mjcf_kinematics import world_frames
-from jaxbal._src.validation import check_shape, guard
+from jaxbal._src.solution_guard import guard_solution
+from jaxbal._src.validation import check_shape
 
 __all__ = ["closure", "closure_motion", "inverse_kinematics", "pose_equations", "pose_motion"]
 
@@ -100,7 +101,7 @@ def _checked(robot, q, converged, offending, message: str, what: str):
     values, with the ranges; under ``jit`` a runtime error): Newton solves the
     equations, not the ranges, so a pose reached only outside a joint's range came back
     as valid (a slide 26 times past its limit)."""
-    q = guard(q, ~converged, message, offending)
+    q = guard_solution(q, ~converged, message, offending)
     if not robot.joint_range:
         return q
     limited = ", ".join(
@@ -112,7 +113,9 @@ def _checked(robot, q, converged, offending, message: str, what: str):
         f"{what}: the solution leaves the range of a limited joint (ranges: {limited}; "
         "a pose out of reach within them, or another assembly mode: try guess=)"
     )
-    return guard(q, out_of_range(robot, q), text, joint_values(robot, q), robot.joint_names)
+    return guard_solution(
+        q, out_of_range(robot, q), text, joint_values(robot, q), robot.joint_names
+    )
 
 
 def _valid(robot, q, converged):

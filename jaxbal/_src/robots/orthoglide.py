@@ -60,12 +60,12 @@ from jaxbal._src.planning import EndEffectorLine, com_line
 from jaxbal._src.profiles import BangBang, Quintic
 from jaxbal._src.robot import Bodies, Robot, concatenate, point_masses
 from jaxbal._src.robots.orthoglide_layout import COUNTER_SLIDERS, orthoglide_tree
+from jaxbal._src.solution_guard import guard_solution
 from jaxbal._src.trajectory import StraightLine
 from jaxbal._src.types import Array, Float
 from jaxbal._src.validation import (
     check_nonnegative,
     check_shape,
-    guard,
 )
 
 __all__ = ["COUNTER_SLIDERS", "Orthoglide", "motion_cases", "orthoglide", "switching_times"]
@@ -261,7 +261,7 @@ class Orthoglide(Robot):
         rho = p + signs * jnp.sqrt(jnp.maximum(radicand, 1e-30))
         q = jnp.concatenate([rho, p])
         out_of_reach = "platform point (pose) out of reach of the Orthoglide legs"
-        return (q, valid) if return_valid else guard(q, ~valid, out_of_reach, given)
+        return (q, valid) if return_valid else guard_solution(q, ~valid, out_of_reach, given)
 
     def forward_kinematics(self, rho, return_valid: bool = False):
         """Platform point ``p (3,)`` [m] from the inputs ``ρ (3,)`` [m], closed form.
@@ -290,7 +290,7 @@ class Orthoglide(Robot):
         px = 2.0 * qc / (-qb + root)
         p = jnp.stack([px, ay + by * px, az + bz * px])
         unassemblable = "inputs rho not assemblable by the Orthoglide"
-        return (p, valid) if return_valid else guard(p, ~valid, unassemblable, rho)
+        return (p, valid) if return_valid else guard_solution(p, ~valid, unassemblable, rho)
 
     # --- centre of mass ---------------------------------------------------------------
 
@@ -339,7 +339,7 @@ class Orthoglide(Robot):
         rho = p + signs * jnp.sqrt(jnp.maximum(self._radicands(p), 1e-30))
         q = jnp.concatenate([rho, p])
         unreachable = "COM target not reachable by the Orthoglide"
-        return (q, valid) if return_valid else guard(q, ~valid, unreachable, com)
+        return (q, valid) if return_valid else guard_solution(q, ~valid, unreachable, com)
 
     def mujoco_tree(self) -> Tree:
         """Sliders, parallelograms on ball joints closed by ``connect`` at P, the

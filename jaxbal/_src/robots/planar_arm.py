@@ -36,8 +36,9 @@ from jaxbal._src.linalg import cos_sin, two_link_ik, unit, wrap
 from jaxbal._src.mujoco.tree import Joint, Tree, TreeBody, Z, identity
 from jaxbal._src.planar import PlanarRobot
 from jaxbal._src.robot import Bodies, concatenate, planar_inertia, point_masses
+from jaxbal._src.solution_guard import guard_solution
 from jaxbal._src.types import Array, Float
-from jaxbal._src.validation import check_nonnegative, check_shape, guard, raise_if_invalid
+from jaxbal._src.validation import check_nonnegative, check_shape, raise_if_invalid
 
 
 def _partial_sums(values):
@@ -208,7 +209,7 @@ class PlanarArm(PlanarRobot):
         if return_valid:
             return q, valid
         # under jit too (a clipped, silently wrong q before): see validation.guard
-        return guard(q, ~valid, "end-effector pose outside the workspace", pose_given)
+        return guard_solution(q, ~valid, "end-effector pose outside the workspace", pose_given)
 
     def com_inverse_kinematics(
         self, com, free=None, *, branch=None, return_valid: bool = False, guess=None
@@ -267,7 +268,9 @@ class PlanarArm(PlanarRobot):
             q = jnp.concatenate([q, closing_angle(free, q[0] + q[1])[None]])
         if return_valid:
             return q, valid
-        return guard(q, ~valid, "COM target not reachable by the arm", com)  # under jit too
+        return guard_solution(
+            q, ~valid, "COM target not reachable by the arm", com
+        )  # under jit too
 
     # --- MuJoCo --------------------------------------------------------------------
 

@@ -57,11 +57,11 @@ from jaxbal._src.linalg import two_link_ik, unit
 from jaxbal._src.mujoco.tree import Coupling, Joint, Tree, TreeBody, Z
 from jaxbal._src.profiles import Profile, Quintic, held, normalised_time
 from jaxbal._src.robot import Bodies, Robot, concatenate, planar_inertia, point_masses, rot_z
+from jaxbal._src.solution_guard import guard_solution
 from jaxbal._src.types import Array, Float, ScalarLike
 from jaxbal._src.validation import (
     check_nonnegative,
     check_shape,
-    guard,
     is_traced,
 )
 
@@ -226,7 +226,7 @@ class Scara(Robot):
         if return_valid:
             return q, valid
         message = "SCARA end-effector pose out of reach (x, y, φ, z)"
-        return guard(q, ~valid, message, pose_given)  # under jit too
+        return guard_solution(q, ~valid, message, pose_given)  # under jit too
 
     # --- MuJoCo --------------------------------------------------------------------
 

@@ -1,0 +1,34 @@
+"""The check of a solver's output (an inverse kinematics, a loop closure, a COM plan's
+join): NaN where the solve failed, also with the runtime checks off.
+
+:func:`~jaxbal._src.validation.guard` raises where a value is invalid, eagerly and under
+``jit``; with the runtime checks off (the programs of an optimiser's line search, a
+sweep, a tolerance search) it returns the value as it is. For most checks that value is
+the invalid input itself (a negative mass, a non-finite state), which the metric carries
+on as non-finite or as what was asked for. A solver's output is different: an
+unreachable COM target gives the closed-form inverse kinematics' clamped root, a Newton
+solve its last iterate, finite joint angles of another motion. Seen as a finite metric,
+such a trial point steered a co-design's line search and ended a tolerance interval as
+if the metric had risen there. Here the output is NaN where the solve failed, so every
+caller sees the point as invalid (a line search rejects it, a sweep stores NaN), and the
+check raises where the runtime checks are on.
+"""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+
+from jaxbal._src.validation import guard, is_traced
+
+
+def guard_solution(value, invalid, message: str, offending, names=None):
+    """``value`` (a pytree of a solver's outputs for one problem), NaN where any entry
+    of ``invalid`` is True when traced, then checked by
+    :func:`~jaxbal._src.validation.guard` (eagerly a ``ValueError`` naming
+    ``offending``, under ``jit`` a runtime error unless the checks are off). Gradients
+    of a valid solution are unchanged (the NaN is a constant branch)."""
+    if is_traced(value, invalid):
+        failed = jnp.any(invalid)
+        value = jax.tree.map(lambda x: jnp.where(failed, jnp.nan, x), value)
+    return guard(value, invalid, message, offending, names)
