@@ -146,7 +146,10 @@ class ComLine(eqx.Module):
             return jnp.where(jnp.any(at), body_gap(self.robot, q[jnp.argmax(at)], q_join), 0.0)
 
         gaps = jnp.stack([gap(0.0, self.q_start), gap(self.line.duration, self.q_end)])
-        return guard_joined(q, gaps, _NOT_JOINED.format(branch=self.branch))
+        # NaN also with the checks off: a force-balancing design fixes the COM, and the
+        # finite motion of its degenerate COM plan was optimised as the move's
+        message = _NOT_JOINED.format(branch=self.branch)
+        return guard_solution(q, ~(gaps <= JOIN_TOLERANCE), message, gaps)
 
     def valid(self, times: Float[Array, " t"]) -> Float[Array, " t"]:
         """Boolean mask: is the COM target reachable at each time (no exception).
@@ -255,15 +258,6 @@ _NOT_JOINED = (
     "(its COM barely moves, so no COM plan joins them); largest body-COM gap [m] at "
     "start, end"
 )
-
-
-def guard_joined(value, gaps, message: str):
-    """``value`` (a pytree) guarded by the join ``gaps`` [m] ``<=`` :data:`JOIN_TOLERANCE`:
-    a runtime error carrying ``message``; with the runtime checks off (an optimiser's
-    programs) NaN where the plan does not join, so the optimiser sees an invalid point
-    (a force-balancing design fixes the COM, and the finite motion of its degenerate
-    COM plan was optimised and reported as the move's)."""
-    return guard_solution(value, ~(gaps <= JOIN_TOLERANCE), message, gaps)
 
 
 def _joins_with(plan: ComLine, sign: int, q_start, q_end) -> bool:

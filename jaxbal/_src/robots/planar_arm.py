@@ -268,9 +268,7 @@ class PlanarArm(PlanarRobot):
             q = jnp.concatenate([q, closing_angle(free, q[0] + q[1])[None]])
         if return_valid:
             return q, valid
-        return guard_solution(
-            q, ~valid, "COM target not reachable by the arm", com
-        )  # under jit too
+        return guard_solution(q, ~valid, "COM target not reachable by the arm", com)
 
     # --- MuJoCo --------------------------------------------------------------------
 
