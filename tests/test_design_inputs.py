@@ -69,6 +69,7 @@ def test_a_negative_lower_bound_on_a_mass_is_refused(arm, motion, move):
     [
         ({"robust": "max", "sharpness": -200.0}, "sharpness must be finite and > 0, got -200.0"),
         ({"robust": "max", "sharpness": 0.0}, "sharpness must be finite and > 0"),
+        ({"robust": "median"}, r"robust must be one of \('mean', 'rms', 'max'\), got 'median'"),
         ({"penalty": -1.0, "constraints": {"added_mass": 5.0}}, "penalty must be finite and >= 0"),
         ({"constraints": {"added_mass": np.nan}}, "constraint bounds must be finite"),
         ({"constraints": {"added_mass": -1.0}}, r"constraints\['added_mass'\] = -1.0 is negative"),

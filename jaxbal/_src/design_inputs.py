@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from jaxbal._src.metrics import resolve_metric
+from jaxbal._src.payload_aggregate import ROBUST
 from jaxbal._src.robot import Robot
 from jaxbal._src.robot_checks import check_robot
 
@@ -62,10 +63,10 @@ def check_penalty(penalty) -> None:
 
 
 def check_robust(robust: str, sharpness) -> None:
-    """``robust`` is ``"mean"`` or ``"max"``; the smooth maximum's ``sharpness`` is a
+    """``robust`` is ``"mean"``, ``"rms"`` or ``"max"``; the smooth maximum's ``sharpness`` is a
     finite number ``> 0`` (a negative one is a smooth *minimum*, zero gives NaN)."""
-    if robust not in ("mean", "max"):
-        raise ValueError(f"robust must be 'mean' or 'max', got {robust!r}")
+    if robust not in ROBUST:
+        raise ValueError(f"robust must be one of {ROBUST}, got {robust!r}")
     value = float(np.asarray(sharpness))
     if not (np.isfinite(value) and value > 0):
         raise ValueError(f"sharpness must be finite and > 0, got {sharpness!r}")

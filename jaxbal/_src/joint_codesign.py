@@ -6,8 +6,10 @@ polynomial, a planned COM path, …) are optimised, with two-sided bounds. The m
 no longer fixed: a motion factory ``motion(robot, θ) -> Motion`` (a module-level
 function or an ``eqx.Module``, so the compiled loop is reused) samples it for every
 candidate. The metrics are evaluated at every payload of ``payloads`` (one ``vmap``)
-and aggregated by their mean (``robust="mean"``, the expectation over a uniform grid)
-or by a smooth maximum (``robust="max"``), the log-mean-exp of the ``n`` payloads::
+and aggregated by their mean (``robust="mean"``, the expectation over a uniform grid),
+their quadratic mean (``"rms"``, smooth where the mean has a kink: a payload balanced
+exactly, see :mod:`jaxbal._src.payload_aggregate`) or by a smooth maximum
+(``robust="max"``), the log-mean-exp of the ``n`` payloads::
 
     smax(v) = s/k · log (1/n) Σ_p exp(k v_p / s),    max v − s log(n)/k ≤ smax(v) ≤ max v
 
@@ -58,6 +60,7 @@ from jaxbal._src.metrics import Motion, check_design_names, finite_array, metric
 from jaxbal._src.momentum import replayed
 from jaxbal._src.motion_factories import check_planned
 from jaxbal._src.optimize import minimize
+from jaxbal._src.payload_aggregate import aggregate, check_aggregable, warn_at_kink
 from jaxbal._src.robot import Robot
 from jaxbal._src.robot_checks import check_robot
 from jaxbal._src.types import Array, Scalar
@@ -81,8 +84,8 @@ class JointSolution(NamedTuple):
         value: final loss (dimensionless); ``initial_value`` where the optimiser starts
             (a variable on a bound moved just inside it: ~1e-5 off the given design's).
         metrics: name -> ``(before, after)`` over the payloads [SI]: an objective's mean,
-            or (``robust="max"``) its smooth maximum, up to ``s log(n)/k`` *below* the
-            worst (``payload_metrics``); a constraint-only metric's worst payload.
+            quadratic mean, or (``robust="max"``) its smooth maximum, up to ``s log(n)/k``
+            *below* the worst (``payload_metrics``); a constraint-only metric's worst payload.
         constraints: name -> ``(worst value over payloads, bound)`` after [SI].
         feasible: every constraint satisfied within :data:`FEASIBILITY_RTOL`.
         converged, steps, grad_norm, history, at_bound: as
@@ -114,15 +117,6 @@ class _Joint(eqx.Module):
     sharpness: Array
 
 
-def _aggregate(values: Array, scales: Array, robust: str, sharpness) -> Array:
-    """``(n_payloads, k)`` metric values -> ``(k,)`` mean or smooth maximum."""
-    if robust == "mean":
-        return jnp.mean(values, axis=0)
-    scaled = sharpness * values / scales
-    log_mean = jax.scipy.special.logsumexp(scaled, axis=0) - np.log(values.shape[0])
-    return scales / sharpness * log_mean
-
-
 def _per_payload(robot, motion, theta, payloads, metrics):
     """``(n_payloads, len(metrics))`` values, one ``vmap`` over the payloads."""
 
@@ -140,7 +134,7 @@ def _loss_values(candidate: Robot, theta, motion: MotionFactory, joint: _Joint):
     metrics = problem.terms + problem.constrained
     values = _per_payload(candidate, motion, theta, joint.payloads, metrics)
     n = len(problem.terms)
-    objective = _aggregate(values[:, :n], problem.scales, joint.robust, joint.sharpness)
+    objective = aggregate(values[:, :n], problem.scales, joint.robust, joint.sharpness)
     constrained = jnp.max(values[:, n:], axis=0) if problem.constrained else None
     return _combine(objective, constrained, problem), values
 
@@ -245,7 +239,10 @@ def joint_codesign(
             ``free`` optimises the trajectory only).
         payloads: ``(n,)`` payloads [kg] the metrics are aggregated over (default: the
             robot's own).
-        robust: ``"mean"`` (expected value over the payload grid) or ``"max"``.
+        robust: ``"mean"`` (expected value over the payload grid), ``"rms"``
+            (quadratic mean, smooth where a payload is balanced exactly) or ``"max"``.
+            A mean that stops unconverged where an objective is zero at some payload
+            (a kink: see :mod:`jaxbal._src.payload_aggregate`) warns, naming it.
         sharpness: ``k > 0`` of the smooth maximum.
         constraints: ``{metric: bound}`` held at the worst payload.
         penalty: weight of the quadratic constraint penalty.
@@ -324,6 +321,7 @@ def joint_codesign(
     _, _, before = evaluate(x_start, joint, at_start=True)
     if not np.all(np.isfinite(before)):
         _raise_invalid_start(robot, motion, theta0, payloads, everything, before)
+    check_aggregable(robust, before[:, :n])
     floors = np.asarray(_floors(robot, motion, theta0, everything))
     nominal = np.maximum(np.abs(np.mean(before, axis=0)), floors)
     given = dict(scales or {})
@@ -365,12 +363,14 @@ def joint_codesign(
     theta = {k: jnp.asarray(v) for k, v in theta.items()}
     names = [metric_name(m) for m in everything]
     aggregated = [
-        np.concatenate([np.asarray(_aggregate(v[:, :n], problem.scales, robust, sharp)),
+        np.concatenate([np.asarray(aggregate(v[:, :n], problem.scales, robust, sharp)),
                         np.max(v[:, n:], axis=0)])
         for v in (before, after)
     ]  # fmt: skip
     check_planned(optimised, motion, theta, payloads)  # a NaN motion was seen by no one
     worst, (converged, steps, grad_norm, history) = np.max(after, axis=0)[where], status
+    if robust == "mean" and not converged:  # a kink of the mean? (warns, naming it)
+        warn_at_kink(after[:, :n], problem.scales, names[:n], payloads, grad_norm)
     excess = worst - np.asarray(bounds)
     return JointSolution(
         design=optimised.design(),

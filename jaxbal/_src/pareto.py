@@ -29,6 +29,7 @@ import numpy as np
 
 from jaxbal._src.joint_codesign import CONSTRAINT_RTOL, _floors, joint_codesign, payload_metrics
 from jaxbal._src.metrics import metric_name
+from jaxbal._src.payload_aggregate import aggregate_numpy
 from jaxbal._src.types import Array
 
 #: a front point is reported dominated (``ParetoFront.efficient`` False) only beyond
@@ -105,14 +106,14 @@ def _checked_front(metrics, weights) -> tuple[tuple, np.ndarray]:
 
 
 def _scales(robot, motion, trajectory, metrics, options) -> dict[str, float]:
-    """Fixed scale of each metric along the front: its worst (``robust="max"``) or mean
-    value over the payloads at the start, floored as in :func:`joint_codesign`."""
+    """Fixed scale of each metric along the front: its worst (``robust="max"``), mean or
+    quadratic mean value over the payloads at the start, floored as in :func:`joint_codesign`."""
     payloads = options.get("payloads")
     if payloads is None:
         payloads = jnp.atleast_1d(robot.design().get("payload", jnp.zeros(())))
     theta = {k: jnp.asarray(v, float) for k, v in trajectory.items()}
     values = np.asarray(payload_metrics(robot, motion, theta, payloads, tuple(metrics)))
-    values = values.max(axis=0) if options.get("robust", "mean") == "max" else values.mean(0)
+    values = aggregate_numpy(values, options.get("robust", "mean"))
     floors = np.asarray(_floors(robot, motion, theta, tuple(metrics)))
     scales = np.maximum(np.abs(values), floors)
     return {metric_name(m): float(x) for m, x in zip(metrics, scales, strict=True)}
