@@ -49,6 +49,7 @@ from jaxbal._src.pareto import (
     pareto_front,
     plot_front,
 )
+from jaxbal._src.payload_metric import OverPayloads, over_payloads
 
 __all__ = [
     "AT_BOUND_RTOL",
@@ -66,6 +67,7 @@ __all__ = [
     "DesignSolution",
     "Motion",
     "MultiStart",
+    "OverPayloads",
     "added_inertia",
     "added_mass",
     "as_motion",
@@ -77,6 +79,7 @@ __all__ = [
     "motion_samples",
     "multistart_joint_codesign",
     "nondominated",
+    "over_payloads",
     "pareto_front",
     "plot_front",
     "payload_metrics",

@@ -1,0 +1,100 @@
+"""A metric aggregated over a payload grid: the objective of a robust co-design as a
+metric of its own, for :func:`jaxbal.sensitivity.tolerance`, ``sensitivity`` or a sweep.
+
+:func:`jaxbal.design.joint_codesign` optimises a metric aggregated over payloads; the
+tolerances of its design (how far a counter-mass may be off) belong to that aggregate,
+not to the metric at the nominal payload. :func:`over_payloads` makes it a metric
+``(robot, motion) -> scalar`` [the metric's unit]: the metric at every payload of the
+grid (one ``vmap``) and their mean, quadratic mean (``"rms"``, as
+:mod:`~jaxbal._src.payload_aggregate`) or **hard** maximum (``"max"``: the worst
+payload, which a tolerance must hold for; the co-design's smooth maximum lies up to
+``s log(n)/k`` below it). With a motion factory and its ``θ`` (a ``JointSolution``'s
+``trajectory``) the motion is planned again for each loaded robot, as the co-design
+does (a COM plan depends on the payload); the ``motion`` the metric is called with is
+then not used. Without one, that motion is used at every payload (an end-effector path:
+its joint motion does not depend on the payload).
+
+References:
+    Geng et al. (2021), §3.3 (sensitivity of the shaking force to payload variation);
+    van der Wijk et al. (2013), §5 (sensitivity of the balance to counter-mass errors).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import equinox as eqx
+import jax
+import jax.numpy as jnp
+
+from jaxbal._src import design_inputs as inputs
+from jaxbal._src.linalg import safe_sqrt
+from jaxbal._src.metrics import Metric, Motion, as_motion, resolve_metric
+from jaxbal._src.robot import Robot
+from jaxbal._src.types import Array, Scalar
+
+__all__ = ["OverPayloads", "over_payloads"]
+
+
+class OverPayloads(eqx.Module):
+    """A metric over a payload grid (module doc); build it with :func:`over_payloads`.
+
+    Attributes:
+        metric: static, a metric name or a module-level callable ``(robot, motion)``.
+        payloads: ``(n,)`` payloads [kg].
+        robust: static, ``"mean"``, ``"rms"`` or ``"max"`` (hard).
+        factory: ``None``, or a motion factory ``(robot, θ) -> Motion``.
+        trajectory: the factory's ``θ`` (name -> array), or ``None``.
+    """
+
+    metric: Any = eqx.field(static=True)
+    payloads: Array
+    robust: str = eqx.field(static=True)
+    factory: Any = None
+    trajectory: dict | None = None
+
+    def __call__(self, robot: Robot, motion: Motion) -> Scalar:
+        function = resolve_metric(self.metric)
+
+        def one(payload):
+            loaded = robot.with_design({"payload": payload})
+            moved = motion if self.factory is None else self.factory(loaded, self.trajectory)
+            return function(loaded, as_motion(moved))
+
+        values = jax.vmap(one)(self.payloads)
+        if self.robust == "mean":
+            return jnp.mean(values)
+        if self.robust == "rms":
+            return safe_sqrt(jnp.mean(values**2))
+        return jnp.max(values)
+
+
+def over_payloads(
+    metric: Metric,
+    payloads,
+    robust: str = "rms",
+    factory=None,
+    trajectory: Mapping[str, Any] | None = None,
+) -> OverPayloads:
+    """``metric`` aggregated over ``payloads`` [kg] (module doc), a metric itself.
+
+    Example (the machining tolerances of a robust co-design's counter-masses)::
+
+        solution = joint_codesign(arm, line, θ, "rms_force", payloads=grid, robust="rms", …)
+        objective = over_payloads("rms_force", grid, "rms", line, solution.trajectory)
+        tol = jaxbal.sensitivity.tolerance(solution.robot, line(solution.robot,
+                                           solution.trajectory), objective)
+
+    Raises:
+        ValueError: an unknown metric or ``robust``, payloads that are empty, negative
+            or not finite, a factory without ``trajectory`` or the reverse.
+    """
+    resolve_metric(metric)
+    if robust not in ("mean", "rms", "max"):
+        raise ValueError(f"robust must be 'mean', 'rms' or 'max', got {robust!r}")
+    if (factory is None) != (trajectory is None):
+        raise ValueError("give a motion factory and its trajectory θ together, or neither")
+    payloads = jnp.asarray(inputs.check_payloads(payloads), dtype=float)
+    theta = None if trajectory is None else {k: jnp.asarray(v) for k, v in trajectory.items()}
+    return OverPayloads(metric, payloads, robust, factory, theta)
