@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import jaxbal
-from jaxbal.design import TrapezoidLine, over_payloads, rms_force
+from jaxbal.design import TrapezoidLine, codesign, over_payloads, rms_force
 from jaxbal.robots.planar_arm import force_balanced
 
 GRID = jnp.array([1.0, 2.5, 4.0])  # [kg], symmetric about the balanced 2.5 kg
@@ -59,6 +59,31 @@ def test_bad_inputs_are_refused_by_name(balanced):
     ]:
         with pytest.raises(ValueError, match=match):
             over_payloads(*args)
+
+
+def test_without_a_factory_it_is_a_term_of_codesign_with_one_it_is_refused(balanced):
+    """A term of ``codesign`` is static (hashable): so is the metric without a factory;
+    with one (arrays) ``codesign`` refuses it by name, before anything compiles."""
+    arm, line, motion = balanced
+    assert hash(over_payloads("rms_force", GRID)) == hash(over_payloads("rms_force", GRID))
+    with pytest.raises(ValueError, match="must be hashable .* got OverPayloads"):
+        codesign(arm, motion, over_payloads("rms_force", GRID, "rms", line, THETA))
+
+
+def test_codesign_of_the_quadratic_mean_balances_the_mean_payload(balanced):
+    """The counter-masses of the 2R co-designed for the quadratic mean of the RMS
+    forces over 0, 1, 5 kg along a fixed motion: the force at payload p of a design
+    balanced for p* is (p − p*)·a_E(t), so the optimum balances the mean payload, 2 kg
+    (reference: the closed form, RMS forces 2 : 1 : 3)."""
+    arm, _, motion = balanced
+    skewed = (0.0, 1.0, 5.0)
+    objective = over_payloads("rms_force", skewed, "rms")
+    solution = codesign(arm, motion, objective, upper={"counter_distance": 0.3})
+    assert bool(solution.converged)
+    values = np.array(
+        [float(rms_force(solution.robot.with_design({"payload": p}), motion)) for p in skewed]
+    )
+    np.testing.assert_allclose(values / values[1], [2.0, 1.0, 3.0], rtol=1e-6)
 
 
 @pytest.mark.slow  # make test-all (make test's 10-minute budget): ~15 s of compilation

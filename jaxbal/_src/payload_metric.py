@@ -1,5 +1,7 @@
 """A metric aggregated over a payload grid: the objective of a robust co-design as a
-metric of its own, for :func:`jaxbal.sensitivity.tolerance`, ``sensitivity`` or a sweep.
+metric of its own, for :func:`jaxbal.sensitivity.tolerance`, ``sensitivity``, a sweep,
+or (without a motion factory) a term of :func:`jaxbal.design.codesign`: a counter-mass
+design robust over the payloads along a fixed motion.
 
 :func:`jaxbal.design.joint_codesign` optimises a metric aggregated over payloads; the
 tolerances of its design (how far a counter-mass may be off) belong to that aggregate,
@@ -32,7 +34,7 @@ from jaxbal._src import design_inputs as inputs
 from jaxbal._src.linalg import safe_sqrt
 from jaxbal._src.metrics import Metric, Motion, as_motion, resolve_metric
 from jaxbal._src.robot import Robot
-from jaxbal._src.types import Array, Scalar
+from jaxbal._src.types import Scalar
 
 __all__ = ["OverPayloads", "over_payloads"]
 
@@ -42,14 +44,15 @@ class OverPayloads(eqx.Module):
 
     Attributes:
         metric: static, a metric name or a module-level callable ``(robot, motion)``.
-        payloads: ``(n,)`` payloads [kg].
+        payloads: static, the ``n`` payloads [kg] (floats: without a factory the metric
+            is hashable, so it can be a term of :func:`~jaxbal.design.codesign`).
         robust: static, ``"mean"``, ``"rms"`` or ``"max"`` (hard).
         factory: ``None``, or a motion factory ``(robot, θ) -> Motion``.
         trajectory: the factory's ``θ`` (name -> array), or ``None``.
     """
 
     metric: Any = eqx.field(static=True)
-    payloads: Array
+    payloads: tuple[float, ...] = eqx.field(static=True)
     robust: str = eqx.field(static=True)
     factory: Any = None
     trajectory: dict | None = None
@@ -62,7 +65,7 @@ class OverPayloads(eqx.Module):
             moved = motion if self.factory is None else self.factory(loaded, self.trajectory)
             return function(loaded, as_motion(moved))
 
-        values = jax.vmap(one)(self.payloads)
+        values = jax.vmap(one)(jnp.asarray(self.payloads, dtype=float))
         if self.robust == "mean":
             return jnp.mean(values)
         if self.robust == "rms":
@@ -95,6 +98,6 @@ def over_payloads(
         raise ValueError(f"robust must be 'mean', 'rms' or 'max', got {robust!r}")
     if (factory is None) != (trajectory is None):
         raise ValueError("give a motion factory and its trajectory θ together, or neither")
-    payloads = jnp.asarray(inputs.check_payloads(payloads), dtype=float)
+    payloads = tuple(float(p) for p in inputs.check_payloads(payloads))
     theta = None if trajectory is None else {k: jnp.asarray(v) for k, v in trajectory.items()}
     return OverPayloads(metric, payloads, robust, factory, theta)
