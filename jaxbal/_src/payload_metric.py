@@ -16,9 +16,16 @@ does (a COM plan depends on the payload); the ``motion`` the metric is called wi
 then not used. Without one, that motion is used at every payload (an end-effector path:
 its joint motion does not depend on the payload).
 
+As an objective, prefer ``"rms"`` for an RMS force or moment: the mean of the payloads'
+values has its minimum on a kink (one payload balanced exactly), where a gradient-based
+optimiser stalls unconverged (:mod:`~jaxbal._src.payload_aggregate`); likewise the
+hard maximum where two payloads tie, as at its minimax optimum (optimise with
+:func:`~jaxbal.design.joint_codesign`'s smooth maximum, check with the hard one).
+
 References:
     Geng et al. (2021), §3.3 (sensitivity of the shaking force to payload variation);
-    van der Wijk et al. (2013), §5 (sensitivity of the balance to counter-mass errors).
+    van der Wijk et al. (2013), §7.2 (sensitivity of the balance to counter-masses too
+    light, equivalently to a payload on the platform).
 """
 
 from __future__ import annotations
