@@ -29,6 +29,7 @@ from jaxbal._src.metrics import (
     Motion,
     base_inertia,
     check_design_names,
+    check_hashable,
     finite_array,
     resolve_metric,
 )
@@ -322,12 +323,7 @@ def _objective_terms(objective) -> tuple[tuple, tuple[float, ...]]:
         terms, weights = (objective,), (1.0,)
     for term in terms:
         resolve_metric(term)
-        try:
-            hash(term)
-        except TypeError:
-            raise ValueError(f"a metric of an objective must be hashable (a name, a module-level "
-                             f"function, an over_payloads without a motion factory), got "
-                             f"{type(term).__name__}") from None  # fmt: skip
+        check_hashable(term)  # the compiled loss is keyed on it
     if not all(np.isfinite(w) and w >= 0 for w in weights):
         raise ValueError(f"objective weights must be finite and non-negative, got {weights}")
     return terms, weights

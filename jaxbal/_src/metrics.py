@@ -313,6 +313,24 @@ def resolve_metric(metric: Metric) -> Callable[[Robot, Motion], Scalar]:
     )
 
 
+def check_hashable(metric: Metric) -> None:
+    """A metric that a compiled program is keyed on (a term of a co-design, a sweep's)
+    must be hashable: a name, a module-level function, an ``eqx.Module`` without arrays
+    (e.g. :func:`~jaxbal.design.over_payloads` without a motion factory).
+
+    Raises:
+        ValueError: naming the metric's type (an ``eqx.Module`` holding arrays).
+    """
+    try:
+        hash(metric)
+    except TypeError:
+        raise ValueError(
+            f"this metric must be hashable (a name, a module-level function, a module "
+            f"without arrays such as over_payloads without a motion factory), got "
+            f"{type(metric).__name__}"
+        ) from None
+
+
 def metric_name(metric: Metric) -> str:
     """Display name of a metric: its name, or the callable's ``__name__``."""
     if isinstance(metric, str):

@@ -1,7 +1,8 @@
 """A metric aggregated over a payload grid: the objective of a robust co-design as a
-metric of its own, for :func:`jaxbal.sensitivity.tolerance`, ``sensitivity``, a sweep,
-or (without a motion factory) a term of :func:`jaxbal.design.codesign`: a counter-mass
-design robust over the payloads along a fixed motion.
+metric of its own, for :func:`jaxbal.sensitivity.tolerance` and ``sensitivity``, and
+(without a motion factory: hashable) in a sweep or as a term of
+:func:`jaxbal.design.codesign`: a counter-mass design robust over the payloads along a
+fixed motion.
 
 :func:`jaxbal.design.joint_codesign` optimises a metric aggregated over payloads; the
 tolerances of its design (how far a counter-mass may be off) belong to that aggregate,

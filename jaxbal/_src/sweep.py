@@ -240,12 +240,13 @@ def prepare(
 ):
     """``(axes, program, dynamic, outputs, evaluation)`` of a sweep (see :func:`sweep`);
     ``evaluation`` says whether the affine fast path is used."""
-    from jaxbal._src.metrics import resolve_metric
+    from jaxbal._src.metrics import check_hashable, resolve_metric
     from jaxbal._src.sweep_inputs import trajectory_values
 
     theta = trajectory_values(motion, trajectory)  # refused: θ of a fixed motion, NaN
     axes = _axes(axes)
     function = resolve_metric(metric) if isinstance(metric, str) else metric
+    check_hashable(metric)  # the compiled program is keyed on it
     plan = plan_parameters(axes, robot, motion)
     check_bounds(axes, robot, plan)
     check_shapes(axes, robot, plan)
