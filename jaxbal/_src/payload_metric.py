@@ -35,12 +35,12 @@ from collections.abc import Mapping
 from typing import Any
 
 import equinox as eqx
-import jax
 import jax.numpy as jnp
 
 from jaxbal._src import design_inputs as inputs
-from jaxbal._src.linalg import safe_sqrt
+from jaxbal._src.joint_codesign import _per_payload
 from jaxbal._src.metrics import Metric, Motion, as_motion, resolve_metric
+from jaxbal._src.payload_aggregate import ROBUST, aggregate
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Scalar
 
@@ -66,19 +66,14 @@ class OverPayloads(eqx.Module):
     trajectory: dict | None = None
 
     def __call__(self, robot: Robot, motion: Motion) -> Scalar:
-        function = resolve_metric(self.metric)
-
-        def one(payload):
-            loaded = robot.with_design({"payload": payload})
-            moved = motion if self.factory is None else self.factory(loaded, self.trajectory)
-            return function(loaded, as_motion(moved))
-
-        values = jax.vmap(one)(jnp.asarray(self.payloads, dtype=float))
-        if self.robust == "mean":
-            return jnp.mean(values)
-        if self.robust == "rms":
-            return safe_sqrt(jnp.mean(values**2))
-        return jnp.max(values)
+        # the co-design's own evaluation (one vmap), the fixed motion as a factory
+        fixed = lambda loaded, theta: as_motion(motion)  # noqa: E731
+        factory = fixed if self.factory is None else self.factory
+        payloads = jnp.asarray(self.payloads, dtype=float)
+        values = _per_payload(robot, factory, self.trajectory, payloads, (self.metric,))
+        if self.robust == "max":  # hard: the worst payload
+            return jnp.max(values)
+        return aggregate(values, jnp.ones(1), self.robust, None)[0]
 
 
 def over_payloads(
@@ -102,7 +97,7 @@ def over_payloads(
             or not finite, a factory without ``trajectory`` or the reverse.
     """
     resolve_metric(metric)
-    if robust not in ("mean", "rms", "max"):
+    if robust not in ROBUST:
         raise ValueError(f"robust must be 'mean', 'rms' or 'max', got {robust!r}")
     if (factory is None) != (trajectory is None):
         raise ValueError("give a motion factory and its trajectory θ together, or neither")
