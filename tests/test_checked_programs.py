@@ -140,10 +140,11 @@ def test_com_trapezoid_valid_marks_the_samples_its_call_would_refuse():
     move = ComTrapezoid(q_a, q_b, jaxbal.sample_times(0.5, 11), branch=-1)
     assert np.all(np.asarray(move.valid(arm, theta)))
     assert np.all(np.isfinite(np.asarray(move(arm, theta).q)))
-    # stretched along +x, then along −x: the straight COM line crosses the hole of the
-    # 2R's annular COM workspace (|x_S| ≥ |k1 − k2| / m > 0) in the middle of the move
+    # nearly stretched along +x, then along −x (exactly stretched is the singular
+    # boundary, refused): the straight COM line crosses the hole of the 2R's annular
+    # COM workspace (|x_S| ≥ |k1 − k2| / m > 0) in the middle of the move
     move = ComTrapezoid(  # the same structure (branch): the programs are reused
-        jnp.array([0.0, 0.0]), jnp.array([jnp.pi, 0.0]), jaxbal.sample_times(0.5, 11), branch=-1
+        jnp.array([0.0, -0.1]), jnp.array([jnp.pi, -0.1]), jaxbal.sample_times(0.5, 11), branch=-1
     )
     mask = np.asarray(move.valid(arm, theta))
     assert mask[0] and mask[-1] and not mask[5]

@@ -85,6 +85,19 @@ def test_a_negative_lower_bound_on_a_mass_is_refused(arm, motion, move):
             {"trajectory_upper": {"u2": np.inf, "ratio": 1.0}},
             r"trajectory_upper\['u2'\] must be finite",
         ),
+        # a scale below the metric's floor was silently raised to it, a typo ignored
+        ({"scales": {"rms_force": 0.0}}, r"scales\['rms_force'\] must be a finite number > 0"),
+        ({"scales": {"rms_force": -1.0}}, r"scales\['rms_force'\] must be a finite number > 0"),
+        ({"scales": {"rms_forc": 1.0}}, "scales names 'rms_forc', not an objective metric"),
+        # bounds out of the factory's domain let the optimiser leave it
+        (
+            {"trajectory_lower": {"u2": 0.05, "ratio": 0.0}},
+            r"bounds of 'ratio' must lie in its domain 0 < ratio <= 1, got \[0, 1\]",
+        ),
+        (
+            {"trajectory_upper": {"u2": 0.5, "ratio": 1.0}},
+            r"bounds of 'u2' must lie in its domain 0 < u2 < 0.5, got \[0.05, 0.5\]",
+        ),
     ],
 )
 def test_joint_codesign_refuses_bad_inputs_by_name(arm, move, options, message):
@@ -158,3 +171,19 @@ def test_a_python_number_leaf_is_named_by_the_metrics_and_codesign(arm, motion):
         jaxbal.design.rms_force(changed, motion)
     with pytest.raises(ValueError, match=message):
         codesign(changed, motion, "rms_force")
+
+
+def test_a_start_that_the_motion_factory_refuses_is_refused(arm, move):
+    """A factory of the user's (not one of jaxbal's, whose θ domain is known) started at
+    a cycle time of 0 s: the co-design's compiled programs run with the checks off and
+    reported the start's RMS force as 0 N; now the start is planned with the checks on."""
+
+    def timed(robot, theta):
+        return move(robot, theta)
+
+    theta = {**THETA, "duration": 0.0}
+    lower = {**BOX["trajectory_lower"], "duration": -1.0}
+    upper = {**BOX["trajectory_upper"], "duration": 1.0}
+    with pytest.raises(ValueError, match="starting robot and trajectory give no valid motion"):
+        joint_codesign(arm, timed, theta, "rms_force", trajectory_lower=lower,
+                       trajectory_upper=upper)  # fmt: skip

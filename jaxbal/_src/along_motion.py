@@ -13,7 +13,7 @@ import jax
 import numpy as np
 
 from jaxbal._src.loop_checks import check_samples_eagerly
-from jaxbal._src.motion_samples import Motion, as_motion
+from jaxbal._src.motion_samples import Motion, as_motion, check_motion_shape
 from jaxbal._src.robot import Robot
 from jaxbal._src.robot_checks import check_robot, checked_finite
 from jaxbal._src.validation import (
@@ -38,6 +38,7 @@ def batched(evaluate, robot: Robot, motion: Motion, what: str, jerk: bool = Fals
     CpuCallback error``) instead of naming the offending value.
     """
     motion = motion if jerk else as_motion(motion)
+    check_motion_shape(robot, motion)
     if is_traced(robot, motion) or _under_trace():  # traced, or closed over by a jit
         return (samples if run is None else run)(evaluate, robot, motion)
     run = compiled_samples if run is None else run

@@ -107,7 +107,7 @@ from jaxbal._src.metrics import (
     finite_array,
     metric_name,
 )
-from jaxbal._src.motion_samples import ReducedMotion
+from jaxbal._src.motion_samples import ReducedMotion, check_motion_shape
 from jaxbal._src.optimize import minimize
 from jaxbal._src.reduced_motion import REDUCE_MIN_VARIABLES, reduce_motion, reduces
 from jaxbal._src.robot import Robot
@@ -254,8 +254,7 @@ def codesign(
             starting metrics).
     """
     motion = as_motion(motions)
-    if motion.q.ndim != 2 or motion.q.shape[1] != robot.dof:
-        raise ValueError(f"motion q must have shape (t, {robot.dof}), got {motion.q.shape}")
+    check_motion_shape(robot, motion)
     # a closed chain's motion off its loops (held while a length changed): its compiled,
     # callback-free programs did not see it and optimised the wrong mechanism
     check_samples_eagerly(robot, motion.q, motion.qd, motion.qdd)

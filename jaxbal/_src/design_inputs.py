@@ -15,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from jaxbal._src.metrics import resolve_metric
+from jaxbal._src.metrics import metric_name, resolve_metric
 from jaxbal._src.payload_aggregate import ROBUST
 from jaxbal._src.robot import Robot
 from jaxbal._src.robot_checks import check_robot
@@ -28,6 +28,7 @@ __all__ = [
     "check_penalty",
     "check_robust",
     "check_rounds",
+    "check_scales",
     "start_inside",
     "starts_inside",
 ]
@@ -54,6 +55,18 @@ def check_constraints(constraints: Mapping[Any, float] | None):
                 "so the budget cannot be met"
             )
     return constrained, bounds
+
+
+def check_scales(scales: Mapping[str, float] | None, terms) -> dict[str, float]:
+    """``scales`` as a dict, each a finite number > 0 naming an objective metric (a scale
+    of 0 or −1 was silently replaced by the metric's floor)."""
+    names = {metric_name(m) for m in terms}
+    for name, scale in dict(scales or {}).items():
+        if name not in names:
+            raise ValueError(f"scales names {name!r}, not an objective metric of {sorted(names)}")
+        if not (np.ndim(scale) == 0 and np.isfinite(scale) and scale > 0):
+            raise ValueError(f"scales[{name!r}] must be a finite number > 0, got {scale!r}")
+    return dict(scales or {})
 
 
 def check_penalty(penalty) -> None:

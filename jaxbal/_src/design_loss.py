@@ -338,9 +338,9 @@ def _bounds(robot, free, lower, upper):
     lows, highs, two_sided = [], [], []
     for name in free:
         shape = np.shape(design[name])
-        lo = np.broadcast_to(finite_array(f"lower[{name!r}]", merged.get(name, 0.0)), shape)
+        lo = finite_array(f"lower[{name!r}]", merged.get(name, 0.0), shape)
         two = upper is not None and name in upper
-        hi = np.broadcast_to(finite_array(f"upper[{name!r}]", upper[name]), shape) if two else lo
+        hi = finite_array(f"upper[{name!r}]", upper[name], shape) if two else lo
         if two and not np.all(hi > lo):
             raise ValueError(f"upper[{name!r}] = {hi!r} must exceed lower = {lo!r}")
         lows.append(np.asarray(lo, dtype=float))

@@ -21,6 +21,7 @@ import jax
 import numpy as np
 
 from jaxbal._src.robot import Robot
+from jaxbal._src.robot_checks import check_leaves
 from jaxbal._src.validation import _under_trace, runtime_checks
 
 
@@ -52,6 +53,7 @@ def run_compiled(fn: Callable, faulty: Callable, robot: Robot, *arrays):
     """
     if _under_trace():
         return fn(robot, *arrays)
+    check_leaves(robot)  # a Python number: static to filter_jit, a TypeError in the physics
     values = [None if a is None else np.asarray(a, dtype=float) for a in arrays]
     if all(v is None or np.all(np.isfinite(v)) for v in values):
         out, rejected = _program(fn, faulty, robot, values)

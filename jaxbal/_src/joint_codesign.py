@@ -58,7 +58,7 @@ from jaxbal._src.design_solution import _contacts, bound_contacts
 from jaxbal._src.lbfgs import lbfgs
 from jaxbal._src.metrics import Motion, check_design_names, finite_array, metric_name
 from jaxbal._src.momentum import replayed
-from jaxbal._src.motion_factories import check_planned
+from jaxbal._src.motion_factories import check_planned, check_start
 from jaxbal._src.optimize import minimize
 from jaxbal._src.payload_aggregate import aggregate, check_aggregable, warn_at_kink
 from jaxbal._src.robot import Robot
@@ -189,8 +189,8 @@ def _trajectory_problem(trajectory, lower, upper) -> _Problem:
     lows, highs = [], []
     for name in names:
         x = finite_array(f"trajectory[{name!r}]", trajectory[name])
-        lo = np.broadcast_to(finite_array(f"trajectory_lower[{name!r}]", lower[name]), x.shape)
-        hi = np.broadcast_to(finite_array(f"trajectory_upper[{name!r}]", upper[name]), x.shape)
+        lo = finite_array(f"trajectory_lower[{name!r}]", lower[name], x.shape)
+        hi = finite_array(f"trajectory_upper[{name!r}]", upper[name], x.shape)
         if not np.all(hi > lo) or np.any(x < lo) or np.any(x > hi):
             raise ValueError(
                 f"trajectory {name!r}: need lower < upper and the start inside, got "
@@ -198,9 +198,8 @@ def _trajectory_problem(trajectory, lower, upper) -> _Problem:
             )
         lows.append(jnp.asarray(lo))
         highs.append(jnp.asarray(hi))
-    empty = jnp.zeros(0)
     return _Problem(names, (True,) * len(names), (), (), tuple(lows), tuple(highs),
-                    empty, empty, empty, empty, jnp.asarray(0.0))  # fmt: skip
+                    *(jnp.zeros(0),) * 4, jnp.asarray(0.0))  # fmt: skip
 
 
 def joint_codesign(
@@ -246,8 +245,8 @@ def joint_codesign(
         sharpness: ``k > 0`` of the smooth maximum.
         constraints: ``{metric: bound}`` held at the worst payload.
         penalty: weight of the quadratic constraint penalty.
-        scales: optional fixed scale per objective metric name (default: its value at
-            the start) — pass the same scales along a Pareto front.
+        scales: optional fixed scale (finite, > 0) per objective metric name (default:
+            its value at the start) — pass the same scales along a Pareto front.
         max_steps, gtol: L-BFGS iteration cap and gradient-norm tolerance.
         optimizer: ``None`` (host-driven L-BFGS) or an optax transformation
             (:func:`jaxbal.minimize`).
@@ -261,6 +260,7 @@ def joint_codesign(
     inputs.check_rounds(rounds)
     inputs.check_penalty(penalty)
     terms, weights = _objective_terms(objective)
+    given = inputs.check_scales(scales, terms)
     constrained, bounds = inputs.check_constraints(constraints)
     bounds = jnp.asarray(bounds)
     design = robot.design()
@@ -276,6 +276,7 @@ def joint_codesign(
     theta0 = {k: jnp.asarray(v, float) for k, v in trajectory.items()}
     lows, highs, two_sided = _bounds(robot, free, lower, upper)
     inputs.starts_inside({k: robot.design()[k] for k in free}, lows, highs, two_sided)
+    check_start(robot, motion, theta0, trajectory_lower, trajectory_upper, payloads)
     everything = terms + tuple(m for m in constrained if m not in terms)
     refuse_rescaled_times(everything, theta0)
     columns = [(terms + constrained).index(m) for m in everything]
@@ -324,9 +325,8 @@ def joint_codesign(
     check_aggregable(robust, before[:, :n])
     floors = np.asarray(_floors(robot, motion, theta0, everything))
     nominal = np.maximum(np.abs(np.mean(before, axis=0)), floors)
-    given = dict(scales or {})
-    term_scales = [max(float(given.get(metric_name(m), nominal[i])), floors[i])
-                   for i, m in enumerate(terms)]  # fmt: skip
+    # a given scale is used as given (it was raised to the floor: another objective)
+    term_scales = [float(given.get(metric_name(m), nominal[i])) for i, m in enumerate(terms)]
     bound_scales = np.maximum(np.abs(np.asarray(bounds)), floors[where])
     joint = eqx.tree_at(lambda j: j.design, joint, make_problem(term_scales, bound_scales))
     problem = joint.design

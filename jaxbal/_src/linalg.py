@@ -102,6 +102,22 @@ def skew(v):
     )
 
 
+#: how close to ±1 a cosine may be for :func:`elbow_angle` (its ``arccos`` is clipped
+#: there: a zero derivative where the true one is infinite).
+SINGULAR_COSINE = 1e-15
+
+
+def elbow_angle(cosine):
+    """``(arccos(cosine), valid)``: the angle in ``[0, π]`` and whether ``cosine`` is
+    strictly inside ``(−1, 1)`` by :data:`SINGULAR_COSINE` (finite). Outside — out of
+    reach, or on the singular boundary where ``d arccos`` is infinite — the angle is
+    that of the nearest boundary (finite, zero derivative) and ``valid`` is False."""
+    valid = jnp.abs(cosine) < 1.0 - SINGULAR_COSINE
+    safe = jnp.where(jnp.isfinite(cosine), cosine, 0.0)
+    limit = 1.0 - SINGULAR_COSINE
+    return jnp.arccos(jnp.clip(safe, -limit, limit)), valid
+
+
 def two_link_ik(target, l1, l2, sign):
     """Closed-form inverse kinematics of a planar two-link chain from the origin.
 
@@ -113,13 +129,19 @@ def two_link_ik(target, l1, l2, sign):
     Returns:
         ``(q1, q2, valid)``: the absolute angle of link 1 and the relative angle of
         link 2 [rad] (finite even when ``valid`` is False: the target is then out of
-        reach and the angles are those of the nearest boundary configuration).
+        reach, or on the boundary of the workspace, and the angles are those of the
+        nearest boundary configuration).
+
+    A target on the boundary (the chain stretched or folded, ``|cos q2| ≥ 1 − 1e-15``)
+    is not valid: the configuration is singular (the joint rates of a motion through it
+    are unbounded) and the clipped ``arccos`` there has a zero derivative, so the joint
+    velocities derived from it would be silently wrong.
     """
     x, y = target[0], target[1]
     cos_q2 = (x**2 + y**2 - l1**2 - l2**2) / (2.0 * l1 * l2)
-    valid = (jnp.abs(cos_q2) <= 1.0) & jnp.isfinite(cos_q2)
-    cos_q2 = jnp.where(jnp.isfinite(cos_q2), cos_q2, 0.0)
-    q2 = sign * jnp.arccos(jnp.clip(cos_q2, -1.0 + 1e-15, 1.0 - 1e-15))
+    cos_q2 = jnp.where(jnp.isfinite(cos_q2), cos_q2, jnp.inf)
+    q2, valid = elbow_angle(cos_q2)
+    q2 = sign * q2
     # At a target on the origin (folded with l1 = l2, else unreachable) arctan2's
     # gradient is NaN: take the direction from the stand-in (1, 0) there instead.
     apart = x**2 + y**2 > 0.0

@@ -355,9 +355,16 @@ def check_design_names(robot: Robot, names) -> tuple[str, ...]:
     return names
 
 
-def finite_array(name: str, value) -> np.ndarray:
-    """``value`` as a float array; raise ``ValueError`` naming it if not finite."""
+def finite_array(name: str, value, shape: tuple[int, ...] | None = None) -> np.ndarray:
+    """``value`` as a float array (broadcast to ``shape``, if given); raise
+    ``ValueError`` naming it if not finite or not broadcastable to ``shape``."""
     array = np.asarray(value, dtype=float)
     if not np.all(np.isfinite(array)):
         raise ValueError(f"{name} must be finite, got {array!r}")
-    return array
+    if shape is None:
+        return array
+    try:
+        return np.broadcast_to(array, shape)
+    except ValueError:
+        raise ValueError(f"{name} has shape {array.shape}, not broadcastable to the "
+                         f"variable's shape {tuple(shape)}") from None  # fmt: skip

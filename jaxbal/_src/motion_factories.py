@@ -51,7 +51,10 @@ from jaxbal._src.trajectory import StraightLine, sample
 from jaxbal._src.types import Array
 from jaxbal._src.validation import checked_call, guard
 
-__all__ = ["JOIN_TOLERANCE", "ComTrapezoid", "TrapezoidLine", "check_planned", "end_effector_path"]
+__all__ = [
+    "JOIN_TOLERANCE", "THETA_DOMAIN", "ComTrapezoid", "TrapezoidLine", "check_planned",
+    "check_start", "end_effector_path",
+]  # fmt: skip
 
 
 def end_effector_path(robot: Robot, line):
@@ -99,17 +102,50 @@ def _sampled(path, times, order: int):
     return Motion(*samples) if order == 2 else JerkMotion(*samples)
 
 
-def check_planned(robot: Robot, factory, theta, payloads) -> None:
+#: the domain of this module's ``θ`` entries: (lowest, highest, highest included).
+THETA_DOMAIN = {
+    "u2": (0.0, 0.5, False),
+    "ratio": (0.0, 1.0, True),
+    "duration": (0.0, np.inf, False),
+}
+
+
+def check_start(robot: Robot, factory, theta, lower, upper, payloads) -> None:
+    """Raise ``ValueError`` if a joint co-design's start gives no motion at some payload
+    (``(n,)`` [kg]) or if, for this module's factories, the bounds of ``θ`` reach out of
+    its domain (:data:`THETA_DOMAIN`: ``0 < u2 < 1/2``, ``0 < ratio ≤ 1``,
+    ``duration > 0``). The co-design's compiled programs run with the checks off, so a
+    refused start (a duration of 0 s) gave finite metrics (an RMS force of 0 N) and a
+    bound out of the domain let the optimiser leave it."""
+    if isinstance(factory, TrapezoidLine | ComTrapezoid):
+        for name, (least, most, closed) in THETA_DOMAIN.items():
+            if name not in theta:
+                continue
+            lo, hi = np.min(np.asarray(lower[name])), np.max(np.asarray(upper[name]))
+            if not (lo > least and (hi <= most if closed else hi < most)):
+                raise ValueError(
+                    f"trajectory bounds of {name!r} must lie in its domain {least:g} < "
+                    f"{name} {'<=' if closed else '<'} {most:g}, got [{lo:g}, {hi:g}]"
+                )
+    check_planned(robot, factory, theta, payloads, start=True)
+
+
+def check_planned(robot: Robot, factory, theta, payloads, start: bool = False) -> None:
     """Raise ``ValueError`` unless ``factory(robot, θ)`` gives a motion at every payload
-    (``(n,)`` [kg]): a co-design's result. Its compiled programs see a refused motion as
-    NaN only, and a design that nearly balances the force makes a COM plan so ill
-    conditioned that a motion the optimiser accepted is refused when evaluated again
-    (the 2R's ComTrapezoid with free counter-masses: RMS force 47 → 3e-5 N, reported as
-    the move's)."""
+    (``(n,)`` [kg]): a co-design's result (or, ``start``, its start). Its compiled
+    programs see a refused motion as NaN only, and a design that nearly balances the
+    force makes a COM plan so ill conditioned that a motion the optimiser accepted is
+    refused when evaluated again (the 2R's ComTrapezoid with free counter-masses: RMS
+    force 47 → 3e-5 N, reported as the move's)."""
     for payload in np.asarray(payloads, dtype=float).reshape(-1):
         try:
             factory(robot.with_design({"payload": payload}), theta)
         except ValueError as error:
+            if start:
+                raise ValueError(
+                    f"the starting robot and trajectory give no valid motion at payload "
+                    f"{payload:g} kg: {error}"
+                ) from None
             raise ValueError(
                 f"the co-designed robot and trajectory give no valid motion at payload "
                 f"{payload:g} kg: {error}. A design that (nearly) balances the force fixes "

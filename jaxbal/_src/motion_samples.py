@@ -18,7 +18,9 @@ from jaxbal._src.trajectory import sample
 from jaxbal._src.types import Array, Float
 from jaxbal._src.validation import checked_call, raise_if_invalid
 
-__all__ = ["JerkMotion", "Motion", "ReducedMotion", "as_motion", "motion_samples"]
+__all__ = [
+    "JerkMotion", "Motion", "ReducedMotion", "as_motion", "check_motion_shape", "motion_samples",
+]  # fmt: skip
 
 
 class Motion(NamedTuple):
@@ -154,3 +156,17 @@ def as_motion(motions) -> Motion:
     if not parts:
         raise ValueError("need at least one motion")
     return Motion(*(jnp.concatenate([p[k] for p in parts]) for k in range(3)))
+
+
+def check_motion_shape(robot: Robot, motion) -> None:
+    """Raise ``ValueError`` unless every part of ``motion`` (``q``, ``q̇``, ``q̈`` and a
+    jerk, if any) has the shape ``(t, robot.dof)`` with ``t ≥ 1`` (static shapes: also
+    under ``jit``). Before, parts of different lengths gave NumPy's concatenation error
+    and a 1-D motion an ``IndexError``."""
+    shapes = [tuple(np.shape(part)) for part in motion]
+    names = ("q", "qd", "qdd", "qddd")[: len(shapes)]
+    good = len(shapes[0]) == 2 and shapes[0][0] >= 1 and shapes[0][1] == robot.dof
+    if not good or any(shape != shapes[0] for shape in shapes):
+        listed = ", ".join(f"{n} {s}" for n, s in zip(names, shapes, strict=True))
+        raise ValueError(f"a motion's parts must each have shape (t, {robot.dof}) with t >= 1 "
+                         f"(samples, {type(robot).__name__}.dof), got {listed}")  # fmt: skip

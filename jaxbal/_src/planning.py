@@ -31,8 +31,8 @@ import numpy as np
 
 from jaxbal._src.actuation import actuator_torque_rate, actuator_torques
 from jaxbal._src.com_ik import com_inverse_kinematics
-from jaxbal._src.linalg import safe_sqrt
 from jaxbal._src.momentum import body_com_positions, center_of_mass, shaking_wrench
+from jaxbal._src.peaks import peak_norm, smooth_peak  # noqa: F401  (re-exported)
 from jaxbal._src.profiles import Profile
 from jaxbal._src.robot import Robot
 from jaxbal._src.solution_guard import guard_solution
@@ -327,46 +327,6 @@ def _torque_rate_along(robot: Robot, path: Callable, times, gravity):
     return jax.vmap(lambda a, b, c, d: actuator_torque_rate(robot, a, b, c, d, gravity))(
         q, qd, qdd, qddd
     )
-
-
-def peak_norm(vectors: Float[Array, "t 3"]) -> Float[Array, ""]:
-    """``max_t ‖v(t)‖`` (e.g. the maximal shaking force of the papers' tables).
-
-    Differentiable everywhere: the norm uses the double-``where`` trick so that an
-    instant with ``v = 0`` (rest at the ends of a move) gives a zero, not NaN, gradient.
-    Vectors above 1e150 are scaled first, so that a finite force of 1e200 N does not
-    overflow to inf in its square (values below are computed exactly as before).
-
-    Raises:
-        ValueError: eagerly, a non-finite vector (under ``jit`` the peak is NaN).
-    """
-    if jnp.ndim(vectors) != 2 or jnp.shape(vectors)[0] == 0:
-        raise ValueError(f"vectors must have shape (t, k) with t >= 1, got {jnp.shape(vectors)}")
-    if not is_traced(vectors):  # one compiled program, not ~10 eager operations
-        rows = np.flatnonzero(~np.all(np.isfinite(np.asarray(vectors)), axis=-1))
-        if rows.size:  # a NaN row was skipped: the finite peak came back
-            raise ValueError(f"peak_norm: vectors must be finite; non-finite rows {rows}")
-        return _peak_norm_compiled(jnp.asarray(vectors))
-    return _peak_norm(vectors)  # a non-finite row gives NaN
-
-
-def _peak_norm(vectors):
-    big = jax.lax.stop_gradient(jnp.max(jnp.abs(vectors)))
-    scale = jnp.where(big > 1e150, big, 1.0)
-    return scale * jnp.max(safe_sqrt(jnp.sum((vectors / scale) ** 2, axis=-1)))
-
-
-_peak_norm_compiled = jax.jit(_peak_norm)
-
-
-def smooth_peak(values: Float[Array, " t"], temperature: ScalarLike) -> Float[Array, ""]:
-    """Differentiable upper bound of ``max|values|``: ``τ·logsumexp(|v|/τ)``.
-
-    Tends to the maximum as ``temperature τ → 0`` (error ≤ τ·log t); used to optimise
-    trajectory parameters against a peak (e.g. eq 19 of Briot et al. 2012).
-    """
-    magnitude = jnp.abs(values)
-    return temperature * jax.nn.logsumexp(magnitude / temperature)
 
 
 def shaking_peaks(robot: Robot, trajectory, times, reference=None, gravity=None):

@@ -169,8 +169,9 @@ class TrapezoidalAcceleration(Profile):
 
     @property
     def peak_acceleration(self) -> Scalar:
-        """Peak ``|s''|`` (the plateau value ``a``) for unit displacement and duration."""
-        return 1.0 / self._shape(jnp.asarray(1.0))
+        """Peak ``|s''|`` (the plateau value ``a``) for unit displacement and duration
+        (switch times checked as where the profile is used)."""
+        return self._checked(1.0 / self._shape(jnp.asarray(1.0)))
 
 
 class BoundaryPolynomial(Profile):

@@ -103,8 +103,8 @@ def plan_rate_limited(
 
     Raises:
         ValueError: a ``duration`` that is not finite and ``> 0``, a ``rate_limit`` that
-            is not finite and ``> 0``, or no candidate satisfying the limit (the move is
-            too fast).
+            is not finite and ``> 0``, a ``grid`` < 2 or ``refinements`` < 0, or no
+            candidate satisfying the limit (the move is too fast).
     """
     # eagerly, before any compilation: T <= 0 sampled the rates at t <= 0 only and
     # reported a plan "within" the limit whose move broke it 267-fold
@@ -112,6 +112,9 @@ def plan_rate_limited(
         number = np.asarray(value, dtype=float)
         if number.shape != () or not (np.isfinite(number) and number >= np.finfo(float).tiny):
             raise ValueError(f"plan_rate_limited: {name} must be finite and > 0, got {value!r}")
+    for name, value, least in (("grid", grid, 2), ("refinements", refinements, 0)):
+        if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < least:
+            raise ValueError(f"plan_rate_limited: {name} must be an int >= {least}, got {value!r}")
     duration = jnp.asarray(duration, dtype=float)
 
     # Search in (u1, g) with u2 = 1/2 − g/2, i.e. g = 1 − 2 u2 the length of the middle ramp.

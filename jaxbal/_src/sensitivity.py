@@ -139,10 +139,16 @@ def sensitivity(
 
     Raises:
         ValueError: an unknown metric or design-variable name (listing the valid ones),
-            an empty ``wrt``, a non-finite gradient, or (``check=True``) a gradient
-            that differs from the finite differences by more than ``rtol``.
+            an empty ``wrt``, a non-finite gradient, or (``check=True``) a
+            ``rel_step`` or ``rtol`` that is not a finite number > 0, a gradient that
+            differs from the finite differences by more than ``rtol``, or finite
+            differences that are not finite (the model undefined at a probe).
     """
     resolve_metric(metric)
+    if check:
+        for what, x in (("rel_step", rel_step), ("rtol", rtol)):
+            if not (np.isscalar(x) and np.isfinite(x) and x > 0):
+                raise ValueError(f"{what} must be a finite number > 0, got {x!r}")
     design = robot.design()
     names = tuple(design) if wrt is None else check_design_names(robot, wrt)
     if not names:
@@ -165,7 +171,10 @@ def sensitivity(
         grad = np.asarray(gradient[name])
         scale = np.maximum(np.abs(grad), abs(float(value)) / np.maximum(x, 1.0))
         scale = np.maximum(scale, np.finfo(float).tiny)
-        worst = max(worst, float(np.max(np.abs(grad - finite[name]) / scale, initial=0.0)))
+        error = np.abs(grad - finite[name]) / scale
+        # a NaN difference (the model not finite at a probe) fails the check: max()
+        # would drop it
+        worst = np.nan if np.any(np.isnan(error)) else max(worst, float(np.max(error, initial=0.0)))
     if not worst <= rtol:
         raise ValueError(
             f"gradient of {metric!r} differs from central finite differences by "

@@ -58,7 +58,7 @@ from collections.abc import Mapping
 import equinox as eqx
 import jax.numpy as jnp
 
-from jaxbal._src.linalg import unit, wrap
+from jaxbal._src.linalg import elbow_angle, unit, wrap
 from jaxbal._src.mujoco.tree import Tree
 from jaxbal._src.planar import PlanarRobot
 from jaxbal._src.robot import Bodies, planar_inertia
@@ -300,9 +300,8 @@ class DualV(PlanarRobot):
         distance2 = jnp.sum(reach**2, -1)
         distance = jnp.sqrt(jnp.maximum(distance2, 1e-24))
         cos_alpha = (self.l1**2 + distance2 - self.l2**2) / (2.0 * self.l1 * distance)
-        valid = jnp.all(jnp.abs(cos_alpha) <= 1.0) & jnp.all(distance2 > 1e-20) & finite
-        cos_alpha = jnp.where(jnp.isfinite(cos_alpha), cos_alpha, 0.0)
-        alpha = jnp.arccos(jnp.clip(cos_alpha, -1.0 + 1e-15, 1.0 - 1e-15))
+        alpha, inside = elbow_angle(cos_alpha)  # the boundary is singular: not valid
+        valid = jnp.all(inside) & jnp.all(distance2 > 1e-20) & finite
         # an arm folded onto its pivot (reach 0): arctan2's gradient is NaN, use (1, 0)
         direction = jnp.where((distance2 > 1e-20)[:, None], reach, jnp.array([1.0, 0.0]))
         theta1 = wrap(jnp.arctan2(direction[:, 1], direction[:, 0]) - sigma * alpha)
@@ -311,7 +310,8 @@ class DualV(PlanarRobot):
         q = jnp.concatenate([theta1, theta2, pose])
         if return_valid:
             return q, valid
-        return guard_solution(q, ~valid, "DUAL-V platform pose outside the workspace", pose_given)
+        message = "DUAL-V platform pose outside the workspace or on its singular boundary"
+        return guard_solution(q, ~valid, message, pose_given)
 
     def design(self) -> dict:
         """``counter_mass`` ``(4,)`` [kg]: the mounted counter-masses (tuning fraction

@@ -186,8 +186,9 @@ class PlanarArm(PlanarRobot):
             return_valid: return ``(q, valid)`` and never raise (batched code).
 
         Raises:
-            ValueError: eagerly, when the pose is outside the workspace (under
-                ``jit`` a runtime error).
+            ValueError: eagerly, when the pose is outside the workspace or on its
+                boundary (links 1 and 2 stretched or folded: singular; under ``jit`` a
+                runtime error).
         """
         pose = pose_given = jnp.asarray(pose, dtype=float)
         n = self.n_links
@@ -209,7 +210,8 @@ class PlanarArm(PlanarRobot):
         if return_valid:
             return q, valid
         # under jit too (a clipped, silently wrong q before): see validation.guard
-        return guard_solution(q, ~valid, "end-effector pose outside the workspace", pose_given)
+        message = "end-effector pose outside the workspace or on its singular boundary"
+        return guard_solution(q, ~valid, message, pose_given)
 
     def com_inverse_kinematics(
         self, com, free=None, *, branch=None, return_valid: bool = False, guess=None
@@ -226,7 +228,9 @@ class PlanarArm(PlanarRobot):
             free: φ [rad] for the 3R (required; shape ``()`` or ``(1,)``), ``None`` for
                 the 2R.
             branch: ``+1`` or ``−1`` (or ``(±1,)``).
-            return_valid: return ``(q, valid)`` (discriminant ≥ 0) and never raise.
+            return_valid: return ``(q, valid)`` (discriminant > 0: on the boundary of
+                the COM workspace, ``Δ = 0``, the configuration is singular) and never
+                raise.
             guess: ignored (closed form; kept for the contract's signature).
 
         Raises:
@@ -234,6 +238,8 @@ class PlanarArm(PlanarRobot):
                 (under ``jit`` a runtime error).
         """
         com = jnp.asarray(com, dtype=float)
+        if com.shape not in ((2,), (3,)):
+            raise ValueError(f"com must have shape (2,) or (3,), got {com.shape}")
         (mode,) = self.branch(branch)
         n = self.n_links
         l_eq = self.equivalent_lengths()
@@ -241,7 +247,10 @@ class PlanarArm(PlanarRobot):
         if n == 3:
             if free is None:
                 raise ValueError("the 3R COM inverse kinematics needs the free angle φ")
-            free = jnp.reshape(jnp.asarray(free, dtype=float), ())
+            free = jnp.asarray(free, dtype=float)
+            if free.shape not in ((), (1,)):
+                raise ValueError(f"free (φ) must have shape () or (1,), got {free.shape}")
+            free = jnp.reshape(free, ())
             target = target - l_eq[2] * unit(free)
         elif n != 2:
             raise ValueError(f"COM inverse kinematics is implemented for n = 2, 3, got {n}")
@@ -249,7 +258,8 @@ class PlanarArm(PlanarRobot):
         b = -2.0 * l_eq[0] * target[1]
         c = jnp.sum(target**2) + l_eq[0] ** 2 - l_eq[1] ** 2
         discriminant = b**2 - c**2 + a**2
-        valid = (discriminant >= 0.0) & jnp.all(jnp.isfinite(com))
+        # Δ = 0 is the singular boundary, where the floored root has a zero derivative
+        valid = (discriminant > 1e-30) & jnp.all(jnp.isfinite(com))
         root = jnp.sqrt(jnp.maximum(discriminant, 1e-30))
         # eq (10): t = (−b ± √Δ)/(c − a) = (c + a)/(−b ∓ √Δ); use the larger denominator.
         den1 = c - a
@@ -268,7 +278,8 @@ class PlanarArm(PlanarRobot):
             q = jnp.concatenate([q, closing_angle(free, q[0] + q[1])[None]])
         if return_valid:
             return q, valid
-        return guard_solution(q, ~valid, "COM target not reachable by the arm", com)
+        message = "COM target not reachable by the arm, or on its singular boundary"
+        return guard_solution(q, ~valid, message, com)
 
     # --- MuJoCo --------------------------------------------------------------------
 

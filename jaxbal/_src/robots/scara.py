@@ -210,8 +210,9 @@ class Scara(Robot):
             return_valid: return ``(q, valid)`` and never raise (batched code).
 
         Raises:
-            ValueError: eagerly, naming the pose, when (x, y) is out of reach (under
-                ``jit`` a runtime error).
+            ValueError: eagerly, naming the pose, when (x, y) is out of reach or on
+                the boundary (arm stretched or folded: singular; under ``jit`` a
+                runtime error).
         """
         pose = pose_given = jnp.asarray(pose, dtype=float)
         check_shape("pose", pose, (4,))
@@ -225,7 +226,7 @@ class Scara(Robot):
         q = jnp.stack([q1, q2, pose[2] - q1 - q2, pose[3]])
         if return_valid:
             return q, valid
-        message = "SCARA end-effector pose out of reach (x, y, φ, z)"
+        message = "SCARA end-effector pose out of reach or on its singular boundary (x, y, φ, z)"
         return guard_solution(q, ~valid, message, pose_given)  # under jit too
 
     # --- MuJoCo --------------------------------------------------------------------
