@@ -222,6 +222,11 @@ def test_existing_store_needs_resume_and_the_same_sweep(arm, tmp_path):
     for part, (r, m, metric) in others.items():
         with pytest.raises(ValueError, match=f"changed since it was written: the {part}"):
             jaxbal.sweep(metric, r, m, {"payload": [0.0, 0.5]}, store=path, resume=True)
+    # the same values as points instead of a grid: the refusal blamed the setters' code
+    points = {"payload": jaxbal.sweep.points({"payload": [0.0, 0.5]})}
+    with pytest.raises(ValueError, match=r"written: the kinds of axes \('payload': grid in the "
+                       r"store, points now\)\. A"):  # fmt: skip
+        jaxbal.sweep("peak_force", robot, motion, points, store=path, resume=True)
     rebuilt = jaxbal.robots.planar_2r()  # the same robot, built again: resumed
     assert bool(eqx.tree_equal(rebuilt, robot))
     jaxbal.sweep("peak_force", rebuilt, motion, {"payload": [0.0, 0.5]}, store=path, resume=True)

@@ -153,3 +153,48 @@ def test_output_dims_of_an_unknown_output_an_axis_or_two_sizes_are_refused_first
         assert not path.exists()
     fine = jaxbal.sweep(two, robot, motion, axes, output_dims={"a": "i", "b": "j"}, progress=False)
     assert dict(fine.sizes) == {"payload": 2, "i": 2, "j": 3}
+
+
+def test_a_plot_of_a_grid_given_unsorted_draws_its_values_in_order():
+    """``grid([4, 0, 2, 1, 3])``: the line joined the points in the given order and the
+    heat map put each value beside the wrong label (t16_plot_unsorted.py)."""
+    x, y = [4.0, 0.0, 2.0, 1.0, 3.0], [1.0, 0.0, 0.5]
+    values = np.add.outer(np.array(x), 10.0 * np.array(y))
+    heat = xr.Dataset({"value": (("m", "p"), values)}, coords={"m": x, "p": y})
+    mesh = plot_sweep(heat).axes[0].collections[0]
+    np.testing.assert_array_equal(mesh.get_array().reshape(5, 3), np.add.outer(
+        np.sort(x), 10.0 * np.sort(y)))  # fmt: skip
+    line = plot_sweep(heat.isel(p=[0])).axes[0].lines[0]
+    np.testing.assert_array_equal(line.get_xdata(), np.sort(x))
+    np.testing.assert_array_equal(line.get_ydata(), np.sort(x) + 10.0)
+    assert heat["m"].values.tolist() == x  # the dataset keeps its order
+
+
+def test_a_sweep_killed_while_creating_its_store_resumes(arm, tmp_path, monkeypatch):
+    """The store was created in place and its description written last: a run killed in
+    between left a store that every resume refused ("no jaxbal_sweep attribute")."""
+    import zarr
+    from zarr.core.attributes import Attributes
+
+    robot, motion = arm
+    path, axes = tmp_path / "s.zarr", {"payload": jaxbal.sweep.grid([0.0, 1.0])}
+
+    def killed(self, *args, **kwargs):
+        raise KeyboardInterrupt("killed while the store is created")
+
+    monkeypatch.setattr(Attributes, "update", killed)
+    with pytest.raises(KeyboardInterrupt):
+        jaxbal.sweep(_payloads, robot, motion, axes, store=path, progress=False)
+    monkeypatch.undo()
+    assert not path.exists() and not list(tmp_path.iterdir())
+    # a half-made store of an older jaxbal (its coordinate only): re-created
+    zarr.open_group(str(path), mode="w", zarr_format=3).create_array("payload", shape=(2,),
+                                                                     dtype="f8")  # fmt: skip
+    ds = jaxbal.sweep(_payloads, robot, motion, axes, store=path, resume=True, progress=False)
+    np.testing.assert_array_equal(ds["value"].values, [[0.0, 0.0], [1.0, 2.0]])
+    # a zarr group that is no half-made store of this sweep is left alone
+    other = tmp_path / "other.zarr"
+    zarr.open_group(str(other), mode="w", zarr_format=3).create_array("x", shape=(2,), dtype="f8")
+    with pytest.raises(ValueError, match="not a jaxbal sweep store .*: remove it or choose"):
+        jaxbal.sweep(_payloads, robot, motion, axes, store=other, resume=True, progress=False)
+    assert (other / "x").exists()

@@ -3,6 +3,9 @@
 A metric reading a module-level pytree (a base model, a profile) or a constant of an
 imported module (``config.SCALE``) was fingerprinted without it: editing that constant
 between a killed run and its resume was accepted, and the store mixed the two sweeps.
+So was a config object read as a global (a dataclass, a ``types.SimpleNamespace``, a
+``functools.partial``; /tmp/ut_sweep/t20_stale_global.py); one the digest cannot
+represent is now refused by name.
 """
 
 import os
@@ -99,3 +102,71 @@ def test_the_digest_is_the_same_in_another_process():
     user, _ = _user()
     here = [value_digest(f) for f in (user.by_module, user.by_pytree, user.by_jitted_helper)]
     assert out.stdout.split()[-3:] == here
+
+
+CONFIGS = """
+import dataclasses, functools, types
+import numpy as np
+
+@dataclasses.dataclass
+class Config:
+    scale: float
+    table: np.ndarray
+
+class Plain:  # object.__repr__: shows no content
+    def __init__(self, scale):
+        self.scale = scale
+
+CFG = Config(1.0, np.zeros(2000))  # a repr would abbreviate the array
+NS = types.SimpleNamespace(scale=1.0)
+def helper(x, k):
+    return k * x
+PART = functools.partial(helper, k=1.0)
+PLAIN = Plain(1.0)
+
+def by_dataclass(robot, motion):
+    return CFG.scale * robot.payload + CFG.table[1000]
+
+def by_namespace(robot, motion):
+    return NS.scale * robot.payload
+
+def by_partial(robot, motion):
+    return PART(robot.payload)
+
+def by_plain(robot, motion):
+    return PLAIN.scale * robot.payload
+
+def by_attribute(robot, motion):  # ``PLAIN`` named as an attribute, not read as a global
+    return robot.PLAIN
+"""
+
+
+def _configs():
+    user = types.ModuleType("user_configs")
+    exec(CONFIGS, user.__dict__)  # noqa: S102
+    return user
+
+
+def test_a_config_object_read_as_a_global_enters_the_digest():
+    """A dataclass instance, a namespace and a partial read as globals were skipped: a
+    store resumed after editing one mixed the old and the new values."""
+    user = _configs()
+    edits = {
+        "by_dataclass": lambda: user.CFG.table.__setitem__(1000, 1.0),
+        "by_namespace": lambda: setattr(user.NS, "scale", 2.0),
+        "by_partial": lambda: setattr(user, "PART", user.functools.partial(user.helper, k=2.0)),
+    }
+    for name, edit in edits.items():
+        before = value_digest(getattr(user, name))
+        edit()
+        assert value_digest(getattr(user, name)) != before, name
+    user = _configs()
+    assert value_digest(user.by_dataclass) == value_digest(_configs().by_dataclass)
+
+
+def test_a_global_the_digest_cannot_represent_is_refused_by_name():
+    user = _configs()
+    message = r"by_plain reads the global 'PLAIN', a user_configs\.Plain that .* cannot rep"
+    with pytest.raises(ValueError, match=message + r"resent.*make it a dataclass"):
+        value_digest(user.by_plain)
+    value_digest(user.by_attribute)  # an attribute of that name is no global

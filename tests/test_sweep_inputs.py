@@ -166,6 +166,18 @@ def test_inputs_are_refused_naming_the_axis_or_variable(arm):
     with pytest.raises(ValueError, match="axis '_jaxbal': the name '_jaxbal' is reserved"):
         sweep(lambda r, m: {"peak": jaxbal.design.peak_force(r, m)}, robot, motion,
               {"_jaxbal": sweep.grid([0.0], name="payload")}, progress=False)  # fmt: skip
+    # an axis named like another axis's parameter: was zarr's ContainsArrayError
+    collide = {"payload": sweep.grid([1.0, 2.0], name="counter_mass"),
+               "s": sweep.sobol(2, {"payload": (0.0, 1.0)})}  # fmt: skip
+    with pytest.raises(ValueError, match=r"axis 'payload' is named like the parameter "
+                       r"'payload' of axis 's'"):  # fmt: skip
+        sweep("peak_force", robot, motion, collide, progress=False)
+    # a swept payload that over_payloads replaces by its own: the axis had no effect
+    robust = jaxbal.design.over_payloads("rms_force", jnp.array([0.0, 1.0]), "rms")
+    with pytest.raises(ValueError, match=r"axis 'load' sets the payload, but the metric "
+                       r"over_payloads\('rms_force', …\) sets its own payloads "
+                       r"\[0.0, 1.0\]"):  # fmt: skip
+        sweep(robust, robot, motion, {"load": sweep.grid([0.0, 5.0], name="payload")})
     # a trajectory variable neither swept nor given: was a bare KeyError: 'ratio'
     move = jaxbal.design.TrapezoidLine(
         jnp.array([0.225, 0.25]), jnp.array([0.225, 0.70]), jaxbal.sample_times(0.5, 16)

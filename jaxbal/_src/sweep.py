@@ -30,7 +30,7 @@ from jaxbal._src.sweep_program import (
     shape_key,
 )
 from jaxbal._src.sweep_run import run_backend
-from jaxbal._src.sweep_store import SweepStore, check_labels, open_dataset, remove_partial_files
+from jaxbal._src.sweep_store import SweepStore, check_labels, discard_unfinished, open_dataset
 
 __all__ = [
     "DEFAULT_MEMORY_BUDGET",
@@ -241,12 +241,13 @@ def prepare(
     """``(axes, program, dynamic, outputs, evaluation)`` of a sweep (see :func:`sweep`);
     ``evaluation`` says whether the affine fast path is used."""
     from jaxbal._src.metrics import check_hashable, resolve_metric
-    from jaxbal._src.sweep_inputs import trajectory_values
+    from jaxbal._src.sweep_inputs import check_payload_axis, trajectory_values
 
     theta = trajectory_values(motion, trajectory)  # refused: θ of a fixed motion, NaN
     axes = _axes(axes)
     function = resolve_metric(metric) if isinstance(metric, str) else metric
     check_hashable(metric)  # the compiled program is keyed on it
+    check_payload_axis(metric, axes)
     plan = plan_parameters(axes, robot, motion)
     check_bounds(axes, robot, plan)
     check_shapes(axes, robot, plan)
@@ -374,12 +375,11 @@ def sweep(
     count = program.mesh.size
     sizes = tuple(a.size for a in axes.values())
     path = None if store is None else Path(store)
-    if path is not None and path.exists():
+    if path is not None and path.exists() and not discard_unfinished(path, axes, outputs):
         if not resume:
             raise FileExistsError(f"{path} exists: pass resume=True to continue it, or remove it")
-        remove_partial_files(path)
-        opened = SweepStore.open(path)
-        check_resumable(path, opened.description, parts)
+        opened = SweepStore.open(path)  # also removes a killed write's *.partial files
+        check_resumable(path, opened.description, parts, axes)
         check_labels(path, opened.group, axes, outputs, meta)
     else:
         if chunk_size is None:

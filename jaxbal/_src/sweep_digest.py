@@ -3,26 +3,39 @@
 A resumed store must hold values computed by the same inputs and the same code: the
 robot, the motion (or motion factory), the fixed θ, the metric and the axes' setters.
 :func:`value_digest` hashes a value by content — arrays by dtype, shape and bytes,
-numbers and strings by value, containers and pytrees element by element — and a
-Python function by its code: the bytecode, constants and names of its code object and
-of the code objects nested in it (lambdas, inner functions), its defaults, the values
-its closure captures, and the globals it reads that are numbers, strings, arrays,
-containers of them, pytrees (a module-level profile, robot or base model), the data
-attributes it names of a module it reads (``config.SCALE``), or functions of its own
-module, jitted or not (a helper whose body changed, a module-level index). Line
-numbers, object addresses and ``hash()`` (salted per process) never enter, so an
-unchanged script rerun in a new process gives the same digest; editing a metric's or a
-setter's body, or a constant it reads, gives another. Code of other modules (jaxbal's
-own functions reached by name, NumPy, …) enters by name only.
+numbers and strings by value, containers and pytrees element by element, a dataclass
+instance that is no pytree by its fields and a ``types.SimpleNamespace`` by its
+attributes (a config object), a ``functools.partial`` by its function and arguments —
+and a Python function by its code: the bytecode, constants and names of its code object
+and of the code objects nested in it (lambdas, inner functions), its defaults, the
+values its closure captures, and the globals it reads that are numbers, strings,
+arrays, containers of them, pytrees (a module-level profile, robot or base model),
+config objects (dataclass, namespace, partial), the data attributes it names of a
+module it reads (``config.SCALE``), functions of its own module, jitted or not (a
+helper whose body changed, a module-level index), or objects whose class gives a
+``repr`` of their own (an enum member, a dtype, a path). Line numbers, object addresses
+and ``hash()`` (salted per process) never enter, so an unchanged script rerun in a new
+process gives the same digest; editing a metric's or a setter's body, or a constant or
+config it reads, gives another. Code of other modules (jaxbal's own functions reached
+by name, NumPy, …) enters by name only. A global that the user's code reads and that
+the digest cannot represent (an instance of a plain class, whose ``repr`` shows no
+content) is refused by name rather than skipped: editing it would go unnoticed (a
+library's module state — flags, caches — is skipped: it is no config of the user's).
 """
 
 from __future__ import annotations
 
+import dataclasses
+import dis
+import functools
 import hashlib
 import json
 import re
+import sys
+import sysconfig
 import types
 from functools import partial
+from pathlib import Path
 
 import jax
 import numpy as np
@@ -82,6 +95,8 @@ def _update(digest, value, globals_: dict | None, seen: set) -> None:
         _update(digest, value.__self__, None, seen)
     elif isinstance(value, partial):
         _update(digest, (value.func, value.args, value.keywords), None, seen)
+    elif isinstance(value, types.SimpleNamespace) or _is_dataclass(value):
+        _record(digest, value, seen)
     elif isinstance(value, tuple | list):
         put(f"{type(value).__name__}[{len(value)}];".encode())
         for item in value:
@@ -124,6 +139,39 @@ def _object(digest, value, seen: set) -> None:
         _update(digest, call, None, seen)
 
 
+def _is_dataclass(value) -> bool:
+    """A dataclass instance that is no pytree (an ``equinox.Module`` is one: it is
+    hashed by its structure and leaves)."""
+    if isinstance(value, type) or not dataclasses.is_dataclass(value):
+        return False
+    leaves = jax.tree_util.tree_leaves(value)
+    return len(leaves) == 1 and leaves[0] is value
+
+
+def _is_record(value) -> bool:
+    """A config object hashed by its content: a dataclass instance, a namespace, a
+    ``functools.partial``."""
+    return isinstance(value, types.SimpleNamespace | partial) or _is_dataclass(value)
+
+
+def _record(digest, value, seen: set) -> None:
+    """A dataclass instance by its class and fields, a namespace by its attributes (a
+    ``repr`` would abbreviate a large array), a callable one also by its ``__call__``."""
+    kind = type(value)
+    digest.update(f"record:{kind.__module__}.{kind.__qualname__};".encode())
+    if id(value) in seen:  # a record that holds itself
+        return
+    seen.add(id(value))
+    if isinstance(value, types.SimpleNamespace):
+        fields = vars(value)
+    else:
+        fields = {f.name: getattr(value, f.name) for f in dataclasses.fields(value)}
+    _update(digest, fields, None, seen)
+    call = kind.__dict__.get("__call__")
+    if isinstance(call, types.FunctionType):
+        _update(digest, call, None, seen)
+
+
 def _code(digest, code: types.CodeType, globals_: dict | None, seen: set) -> None:
     """A code object: bytecode, constants (nested code objects recursively), names and
     argument counts; the globals it reads (module doc) from ``globals_``."""
@@ -135,6 +183,7 @@ def _code(digest, code: types.CodeType, globals_: dict | None, seen: set) -> Non
     if globals_ is None:
         return
     module = globals_.get("__name__")
+    loaded = {i.argval for i in dis.get_instructions(code) if i.opname == "LOAD_GLOBAL"}
     for name in code.co_names:
         if name not in globals_:
             continue  # an attribute, or a builtin
@@ -144,12 +193,63 @@ def _code(digest, code: types.CodeType, globals_: dict | None, seen: set) -> Non
             # names (every name it reads that the module has: a superset, never fewer)
             for attribute in code.co_names:
                 value = getattr(found, attribute, None)
-                if attribute != name and _is_data(value):
+                record = _is_record(value) and not _is_library(found.__name__)
+                if attribute != name and (_is_data(value) or record):
                     digest.update(f"global:{name}.{attribute};".encode())
                     _update(digest, value, None, seen)
-        elif _is_data(found) or _is_own_function(found, module):
+        elif _is_data(found) or _is_own_function(found, module) or _is_record(found):
             digest.update(f"global:{name};".encode())
             _update(digest, found, None, seen)
+        elif name in loaded and not (_by_name(found, module) or _is_library(module)):
+            if not _shows_content(found):
+                raise _unrepresentable(name, found, code)
+            digest.update(f"global:{name};".encode())
+            _object(digest, found, seen)
+
+
+@functools.cache
+def _is_library(module: str | None) -> bool:
+    """A module of jaxbal, of an installed package or of the standard library: its
+    module-level state (flags, caches, registries) is not a user's config; a global of
+    its code that the digest cannot represent is skipped, not refused."""
+    top = (module or "").partition(".")[0]
+    if top == "jaxbal" or top in sys.builtin_module_names:
+        return True
+    found = getattr(sys.modules.get(top), "__file__", None)
+    if found is None:
+        return False
+    paths = sysconfig.get_paths()
+    roots = {Path(paths[k]).resolve() for k in ("stdlib", "platstdlib", "purelib", "platlib")}
+    return any(root in Path(found).resolve().parents for root in roots)
+
+
+def _by_name(value, module) -> bool:
+    """A global that enters by its name only: ``None`` (a value replacing it enters), a
+    class, or a function or callable of another module (jaxbal's, NumPy's, a jit
+    wrapper)."""
+    if value is None or isinstance(value, type):
+        return True
+    return callable(value) and type(value).__module__ != module
+
+
+def _shows_content(value) -> bool:
+    """A pytree, or an object whose class gives a ``repr`` of its own (an enum member,
+    a dtype, a path): hashed by that (:func:`_object`); not ``object.__repr__``, which
+    shows the class and an address only."""
+    leaves = jax.tree_util.tree_leaves(value)
+    pytree = not (len(leaves) == 1 and leaves[0] is value)
+    return pytree or type(value).__repr__ is not object.__repr__
+
+
+def _unrepresentable(name: str, value, code: types.CodeType) -> ValueError:
+    kind = type(value)
+    return ValueError(
+        f"{code.co_qualname} reads the global {name!r}, a {kind.__module__}.{kind.__qualname__}"
+        " that the sweep's fingerprint cannot represent (its repr shows no content), so an "
+        "edit of it would go unnoticed when a store is resumed: make it a dataclass, a "
+        "types.SimpleNamespace, an equinox.Module or numbers, arrays or containers of "
+        "them, or give its class a __repr__ that shows every value the code reads"
+    )
 
 
 def _is_data(value) -> bool:
@@ -201,9 +301,9 @@ def fingerprint(parts: dict) -> str:
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 
 
-def check_resumable(path, description: dict, parts: dict) -> None:
+def check_resumable(path, description: dict, parts: dict, axes: dict | None = None) -> None:
     """Refuse to resume the store at ``path`` (its ``description``) with a sweep of
-    other inputs or code (``parts``).
+    other inputs or code (``parts``; ``axes``, to name an axis whose kind changed).
 
     Raises:
         ValueError: naming the parts that differ (unknown for a store written before
@@ -213,13 +313,28 @@ def check_resumable(path, description: dict, parts: dict) -> None:
         return
     stored = description.get("parts")
     if isinstance(stored, dict):
-        changed = ", ".join(
-            f"the {PART_NAMES.get(k, k)}" for k in parts if stored.get(k) != parts[k]
-        )
+        changed = [f"the {PART_NAMES.get(k, k)}" for k in parts if stored.get(k) != parts[k]]
+        kinds = _changed_kinds(description.get("kinds"), axes)
+        if kinds:  # a grid has a setter slot that other axes lack: name the kind instead
+            setters = f"the {PART_NAMES['setters']}"
+            changed = [c for c in changed if c != setters] + [f"the kinds of axes ({kinds})"]
+        changed = ", ".join(changed)
     else:  # written before the parts (and the metric's and setters' code) were recorded
         changed = "unknown (the store predates the fingerprint of each part and of code)"
     raise ValueError(
         f"{path} holds a different sweep; changed since it was written: {changed}. A store "
         "resumes only with the same axes, values, outputs, robot, motion, metric, setters "
         f"and θ: pass those, or start afresh (remove {path} or write another store)"
+    )
+
+
+def _changed_kinds(stored, axes: dict | None) -> str:
+    """``"'x': grid in the store, points now; …"`` for the axes whose kind (grid,
+    points, sobol, …) differs from the store's (``""`` if none, or not recorded)."""
+    if not isinstance(stored, dict) or axes is None:
+        return ""
+    return "; ".join(
+        f"{dim!r}: {stored[dim]} in the store, {axis.kind} now"
+        for dim, axis in axes.items()
+        if dim in stored and stored[dim] != axis.kind
     )

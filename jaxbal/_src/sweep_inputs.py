@@ -8,7 +8,10 @@
 * :func:`trajectory_values`: a fixed θ (``trajectory=``) given with a motion that takes
   none (not a factory), or not finite;
 * :func:`check_names`: an axis or parameter named like an array the store holds
-  already (the metric's outputs, e.g. ``value``, and the ``_jaxbal`` manifest);
+  already (the metric's outputs, e.g. ``value``, and the ``_jaxbal`` manifest), or an
+  axis named like another axis's parameter;
+* :func:`check_payload_axis`: a swept ``payload`` that the metric replaces by its own
+  (:func:`jaxbal.design.over_payloads`);
 * :func:`trajectory_shapes`: the outputs' shapes, a motion factory that reads a
   trajectory variable that is neither swept nor given (``trajectory=``) named.
 """
@@ -20,7 +23,14 @@ import numpy as np
 from jaxbal._src.sweep_program import output_shapes
 from jaxbal._src.sweep_store import MANIFEST, parameter_key
 
-__all__ = ["check_bounds", "check_names", "check_shapes", "trajectory_shapes", "trajectory_values"]
+__all__ = [
+    "check_bounds",
+    "check_names",
+    "check_payload_axis",
+    "check_shapes",
+    "trajectory_shapes",
+    "trajectory_values",
+]
 
 
 def check_bounds(axes: dict, robot, plan) -> None:
@@ -79,12 +89,13 @@ def check_shapes(axes: dict, robot, plan) -> None:
 def check_names(axes: dict, outputs: dict) -> None:
     """Refuse an axis or parameter stored under a name that the store gives to an output
     of the metric (``outputs``; ``value`` for a metric returning one array) or to its
-    manifest (``_jaxbal``).
+    manifest (``_jaxbal``), and an axis named like a parameter of another axis.
 
     Raises:
         ValueError: naming the clashing name and the reserved ones.
     """
     reserved = {*outputs, MANIFEST}
+    _check_axis_names(axes)
     for dim, axis in axes.items():
         stored = {dim} | {
             parameter_key(dim, name)
@@ -97,6 +108,43 @@ def check_names(axes: dict, outputs: dict) -> None:
                 f"sweep axis {dim!r}: the name {clash[0]!r} is reserved in the store (the "
                 f"metric's outputs and the manifest: {sorted(reserved)}); name the axis "
                 "otherwise (grid(..., name=PARAMETER) keeps the parameter it sets)"
+            )
+
+
+def _check_axis_names(axes: dict) -> None:
+    """Refuse an axis named like a parameter of another axis (the store would hold two
+    arrays of that name; zarr refused the second), naming both axes."""
+    for dim in axes:
+        for other, axis in axes.items():
+            if other != dim and dim in axis.values:
+                raise ValueError(
+                    f"sweep axis {dim!r} is named like the parameter {dim!r} of axis "
+                    f"{other!r}: the store and the dataset would hold two variables of that "
+                    f"name; name the axis otherwise (grid(..., name=PARAMETER) keeps the "
+                    "parameter it sets)"
+                )
+
+
+def check_payload_axis(metric, axes: dict) -> None:
+    """Refuse a ``payload`` parameter swept with a metric that sets the payload itself
+    (:func:`jaxbal.design.over_payloads`): it replaces the swept payload at every point,
+    so the axis would have no effect.
+
+    Raises:
+        ValueError: naming the axis and the metric.
+    """
+    from jaxbal._src.payload_metric import OverPayloads
+
+    if not isinstance(metric, OverPayloads):
+        return
+    inner = getattr(metric.metric, "__name__", metric.metric)
+    for dim, axis in axes.items():
+        if "payload" in axis.values:
+            raise ValueError(
+                f"sweep axis {dim!r} sets the payload, but the metric over_payloads("
+                f"{inner!r}, …) sets its own payloads {list(metric.payloads)} kg at every "
+                "point, so the axis would have no effect: sweep another parameter, or "
+                f"sweep the payload with the metric {inner!r} itself"
             )
 
 

@@ -1,4 +1,5 @@
-"""Plots of a sweep: a line plot over one axis, a heat map over two."""
+"""Plots of a sweep: a line plot over one axis, a heat map over two, drawn in the order
+of the axes' values (a grid may list them in any order)."""
 
 from __future__ import annotations
 
@@ -60,15 +61,18 @@ def plot_sweep(source, variable: str | None = None, *, out=None, reduce: str = "
     keep = min(len(axes), 2)
     data = data.transpose(*axes[:keep], ...)
     data, note = _reduce(data, keep, reduce)
+    # a grid's values in the order given (grid([4, 0, 2])): a line and a mesh need them
+    # ascending; the dataset keeps its order
+    data = data.sortby([d for d in data.dims if d in data.coords])
     fig, ax = plt.subplots(figsize=(6.4, 4.4))
     x = data.dims[0]
     if keep == 1:
-        ax.plot(dataset[x].values, data.values, marker="." if data.size < 60 else None)
+        ax.plot(data[x].values, data.values, marker="." if data.size < 60 else None)
         ax.set_ylabel(_label(dataset, variable))
     else:
         y = data.dims[1]
         mesh = ax.pcolormesh(
-            dataset[y].values, dataset[x].values, data.values, shading="nearest", cmap="viridis"
+            data[y].values, data[x].values, data.values, shading="nearest", cmap="viridis"
         )
         fig.colorbar(mesh, ax=ax, label=_label(dataset, variable))
         ax.set_xlabel(_label(dataset, y))

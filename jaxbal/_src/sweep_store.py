@@ -13,6 +13,12 @@ Layout (zarr format 3, readable by ``xarray.open_zarr(path, consolidated=False)`
   outputs are written: a block is done when its byte is, so a run killed at any moment
   leaves a store whose done blocks are complete; ``resume=True`` recomputes the others.
 
+A new store is built under a hidden sibling name (``.NAME.PID-….new``) and renamed
+into place once its description is written: a run killed while creating it leaves no
+store at ``path`` (a later run deletes the orphaned sibling). A half-made store of an
+older jaxbal (no description, no block done, only this sweep's arrays) is re-created
+(:func:`discard_unfinished`) instead of being refused on every resume.
+
 The group attribute ``jaxbal_sweep`` records the axes, the block shape and a fingerprint
 of every value and every piece of code the sweep depends on — the axes, the outputs'
 shapes, the robot, the motion, the fixed θ, and the metric and the axes' setters by
@@ -26,6 +32,9 @@ output's own dimensions (:func:`check_labels`). The group's other attributes
 
 from __future__ import annotations
 
+import os
+import secrets
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -91,61 +100,28 @@ class SweepStore:
         import zarr
 
         check_output_dims(axes, outputs, meta.get("output_dims", {}))
-        store = zarr.storage.MemoryStore() if path is None else str(path)
-        group = zarr.open_group(store, mode="w", zarr_format=3)
-        dims = list(axes)
-        coordinates = []
-        for dim, axis in axes.items():
-            coord = group.create_array(
-                dim, shape=(axis.size,), chunks=(axis.size,), dtype="f8", dimension_names=[dim]
-            )
-            coord[:] = axis.coordinate
-            coord.attrs.update({"kind": axis.kind, "units": _coordinate_units(dim, axis)})
-            for name, values in axis.values.items():
-                if axis.kind == "grid" and values.ndim == 1:
-                    continue  # the values are the coordinate itself
-                key = parameter_key(dim, name)
-                names = [dim] + [f"{name}_dim{i}" for i in range(values.ndim - 1)]
-                array = group.create_array(
-                    key, shape=values.shape, chunks=values.shape, dtype="f8", dimension_names=names
-                )
-                array[...] = values
-                array.attrs["units"] = axis.units.get(name, "")
-                array.attrs["parameter"] = name
-                coordinates.append(key)
-        units, given_dims = meta.get("units", {}), meta.get("output_dims", {})
-        for name, spec in outputs.items():
-            extra = tuple(spec.shape)
-            dtype = np.dtype(spec.dtype)
-            fill = np.nan if np.issubdtype(dtype, np.floating) else 0
-            array = group.create_array(
-                name,
-                shape=layout.sizes + extra,
-                chunks=layout.block + extra,
-                dtype=dtype,
-                fill_value=fill,
-                dimension_names=dims + _output_dims(name, extra, given_dims.get(name)),
-            )
-            array.attrs["units"] = units.get(name, "")
-            if coordinates:
-                array.attrs["coordinates"] = " ".join(coordinates)
-        manifest = group.create_group(MANIFEST)
-        manifest.create_array("done", shape=(layout.count,), chunks=(1,), dtype="u1", fill_value=0)
-        description = {
-            "format": _FORMAT,
-            "dims": dims,
-            "sizes": list(layout.sizes),
-            "block": list(layout.block),
-            "outputs": sorted(outputs),
-            "fingerprint": meta["fingerprint"],
-            "parts": meta["parts"],
-        }
-        group.attrs.update({**meta.get("attrs", {}), "jaxbal_sweep": description})
-        return cls(group, layout)
+        if path is None:
+            group = zarr.open_group(zarr.storage.MemoryStore(), mode="w", zarr_format=3)
+            return cls(_fill(group, axes, layout, outputs, meta), layout)
+        # built under a hidden sibling and renamed into place: a run killed meanwhile
+        # leaves no half-made store at ``path`` (one without its description)
+        path = Path(path)
+        _remove_abandoned(path)
+        building = path.with_name(f".{path.name}.{os.getpid()}-{secrets.token_hex(4)}.new")
+        try:
+            _fill(zarr.open_group(str(building), mode="w", zarr_format=3), axes, layout,
+                  outputs, meta)  # fmt: skip
+            building.rename(path)
+        except BaseException:
+            shutil.rmtree(building, ignore_errors=True)
+            raise
+        return cls(_open_group(path, "r+"), layout)
 
     @classmethod
     def open(cls, path) -> SweepStore:
-        """An existing store (to resume it)."""
+        """An existing store (to resume it), without the temporary files of a write
+        that was killed (:func:`remove_partial_files`)."""
+        remove_partial_files(path)
         group = _open_group(path, "r+")
         description = describe(group)
         layout = Layout(tuple(description["sizes"]), tuple(description["block"]))
@@ -168,11 +144,104 @@ class SweepStore:
         self.done_array[k] = 1
 
 
+def _fill(group, axes: dict[str, Axis], layout: Layout, outputs: dict, meta: dict):
+    """Write a new store's arrays, manifest and, last, its description into ``group``."""
+    dims = list(axes)
+    coordinates = []
+    for dim, axis in axes.items():
+        coord = group.create_array(
+            dim, shape=(axis.size,), chunks=(axis.size,), dtype="f8", dimension_names=[dim]
+        )
+        coord[:] = axis.coordinate
+        coord.attrs.update({"kind": axis.kind, "units": _coordinate_units(dim, axis)})
+        for name, values in axis.values.items():
+            if axis.kind == "grid" and values.ndim == 1:
+                continue  # the values are the coordinate itself
+            key = parameter_key(dim, name)
+            names = [dim] + [f"{name}_dim{i}" for i in range(values.ndim - 1)]
+            array = group.create_array(
+                key, shape=values.shape, chunks=values.shape, dtype="f8", dimension_names=names
+            )
+            array[...] = values
+            array.attrs["units"] = axis.units.get(name, "")
+            array.attrs["parameter"] = name
+            coordinates.append(key)
+    units, given_dims = meta.get("units", {}), meta.get("output_dims", {})
+    for name, spec in outputs.items():
+        extra = tuple(spec.shape)
+        dtype = np.dtype(spec.dtype)
+        fill = np.nan if np.issubdtype(dtype, np.floating) else 0
+        array = group.create_array(
+            name,
+            shape=layout.sizes + extra,
+            chunks=layout.block + extra,
+            dtype=dtype,
+            fill_value=fill,
+            dimension_names=dims + _output_dims(name, extra, given_dims.get(name)),
+        )
+        array.attrs["units"] = units.get(name, "")
+        if coordinates:
+            array.attrs["coordinates"] = " ".join(coordinates)
+    manifest = group.create_group(MANIFEST)
+    manifest.create_array("done", shape=(layout.count,), chunks=(1,), dtype="u1", fill_value=0)
+    description = {
+        "format": _FORMAT,
+        "dims": dims,
+        "sizes": list(layout.sizes),
+        "block": list(layout.block),
+        "outputs": sorted(outputs),
+        "kinds": {dim: axis.kind for dim, axis in axes.items()},
+        "fingerprint": meta["fingerprint"],
+        "parts": meta["parts"],
+    }
+    group.attrs.update({**meta.get("attrs", {}), "jaxbal_sweep": description})
+    return group
+
+
+def _remove_abandoned(path: Path) -> None:
+    """Delete the hidden siblings ``.NAME.PID-….new`` that a run killed while creating
+    the store at ``path`` left (their process is gone)."""
+    for leftover in path.parent.glob(f".{path.name}.*.new"):
+        pid = leftover.name[len(path.name) + 2 :].partition("-")[0]
+        try:
+            os.kill(int(pid), 0)  # signal 0: is the process alive?
+        except ProcessLookupError:
+            shutil.rmtree(leftover, ignore_errors=True)
+        except (ValueError, OSError):
+            continue  # not ours, or alive under another user
+
+
+def discard_unfinished(path, axes: dict[str, Axis], outputs: dict) -> bool:
+    """Delete the store at ``path`` if its creation was interrupted (by a jaxbal whose
+    creation was not atomic) and it could never be resumed: a zarr group without
+    attributes (the description is written last) holding only arrays of this sweep
+    (``axes``' coordinates and parameters, the ``outputs``) and the ``_jaxbal``
+    manifest, no block done. True if it was deleted (the sweep then creates it anew)."""
+    import zarr
+
+    names = {MANIFEST, *outputs}
+    for dim, axis in axes.items():
+        names |= {dim} | {parameter_key(dim, name) for name in axis.values}
+    try:
+        group = zarr.open_group(str(path), mode="r", zarr_format=3)
+        members = set(group.keys())
+        done = group[MANIFEST]["done"][:] if MANIFEST in members else ()
+    except Exception:  # noqa: BLE001 - not zarr, or not ours: left to open()
+        return False
+    if len(group.attrs) or not members <= names or np.any(done):
+        return False
+    shutil.rmtree(path)
+    return True
+
+
 def describe(group) -> dict:
     """The ``jaxbal_sweep`` attribute of a store's group."""
     description = group.attrs.get("jaxbal_sweep")
     if not isinstance(description, dict) or description.get("format") != _FORMAT:
-        raise ValueError("not a jaxbal sweep store (no jaxbal_sweep attribute)")
+        raise ValueError(
+            "not a jaxbal sweep store (no jaxbal_sweep attribute: not written by "
+            "jaxbal.sweep, or by another version of it): remove it or choose another path"
+        )
     return description
 
 
