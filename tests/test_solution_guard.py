@@ -14,6 +14,7 @@ import pytest
 
 import jaxbal
 from jaxbal import robots
+from jaxbal._src.com_components import planned_com
 from jaxbal._src.com_ik import com_inverse_kinematics
 from jaxbal.design import ComTrapezoid, rms_force
 
@@ -35,7 +36,7 @@ def _solve(robot, kind, target):
 def _target(robot, kind, pose):
     if kind == "pose":
         return pose
-    return jaxbal.center_of_mass(robot, robot.inverse_kinematics(pose))[: robot.com_dims]
+    return planned_com(robot, robot.inverse_kinematics(pose), robot.com_components)
 
 
 @pytest.mark.parametrize("name", sorted(FAR))

@@ -3,8 +3,10 @@
 For a robot without a closed-form COM inverse kinematics (the SCARA, the DUAL-V, a
 robot loaded from MJCF), the COM is a smooth function of the end-effector pose through
 the robot's own inverse kinematics: ``S(pose) = x_S(IK(pose))``. With a ``d``-dim COM
-target, the first ``d`` pose components are solved by Newton's method and the others
-are held at the given ``free`` values (e.g. the platform angle θ5 of the DUAL-V). The
+target in the robot's COM components (:mod:`~jaxbal._src.com_components`: ``(x, y)``
+of a planar robot, ``(x, z)`` of an arm in the vertical plane), the first ``d`` pose
+components are solved by Newton's method and the others are held at the given ``free``
+values (e.g. the platform angle θ5 of the DUAL-V). The
 solution is differentiated implicitly (:func:`jaxbal._src.implicit.newton_solve`), so
 planned motions have exact velocities and accelerations and gradients with respect to
 every robot parameter.
@@ -20,8 +22,8 @@ import functools
 
 import jax.numpy as jnp
 
+from jaxbal._src.com_components import com_components, planned_com, world_com_target
 from jaxbal._src.implicit import newton_solve
-from jaxbal._src.momentum import center_of_mass
 from jaxbal._src.solution_guard import guard_solution
 
 
@@ -29,16 +31,17 @@ def _pose(x, free):
     return jnp.concatenate([x, free])
 
 
-def _residual(branch, x, params):
+def _residual(branch, components, x, params):
     robot, target, free = params
     q, _ = robot.inverse_kinematics(_pose(x, free), branch=branch, return_valid=True)
-    return center_of_mass(robot, q)[: target.shape[0]] - target
+    return planned_com(robot, q, components) - target
 
 
 @functools.cache
-def _residual_for(branch: tuple[int, ...]):
-    # One hashable residual per branch: repeated solves reuse one compilation.
-    return functools.partial(_residual, branch)
+def _residual_for(branch: tuple[int, ...], components: tuple[int, ...]):
+    # One hashable residual per branch and projection: repeated solves reuse one
+    # compilation.
+    return functools.partial(_residual, branch, components)
 
 
 def com_inverse_kinematics(robot, com, free=None, *, branch=None, return_valid=False, guess=None):
@@ -59,7 +62,10 @@ def numerical_com_inverse_kinematics(
 
     Args:
         robot: any :class:`~jaxbal.Robot`.
-        com: ``(d,)`` target COM [m] (``d`` = 2 for planar robots, 3 for spatial ones).
+        com: ``(d,)`` target COM [m] in the robot's COM components (``d`` = 2 for
+            planar robots, 3 for spatial ones), or a ``(3,)`` world COM for a robot
+            whose components are not the leading ones (an arm in the x-z plane: its
+            ``(x, z)`` are taken, :func:`~jaxbal._src.com_components.world_com_target`).
         free: the remaining ``k − d`` pose components (default zeros), for a pose of
             length ``k``.
         branch: working mode of the robot's inverse kinematics.
@@ -71,7 +77,7 @@ def numerical_com_inverse_kinematics(
         ValueError: eagerly (``return_valid=False``), naming the target, when Newton
             does not converge to a reachable pose.
     """
-    com = jnp.atleast_1d(jnp.asarray(com, dtype=float))
+    com = world_com_target(robot, jnp.atleast_1d(jnp.asarray(com, dtype=float)))
     branch = robot.branch(branch)
     pose_size = jnp.shape(robot.end_effector(jnp.zeros(robot.dof)))[0]
     d = com.shape[0]
@@ -81,8 +87,9 @@ def numerical_com_inverse_kinematics(
     if free.shape != (pose_size - d,):
         raise ValueError(f"free must have shape ({pose_size - d},), got {free.shape}")
     x0 = com if guess is None else jnp.asarray(guess, dtype=float)[:d]
+    residual = _residual_for(branch, com_components(robot, d))
     solution = newton_solve(
-        _residual_for(branch), x0, (robot, com, free), throw=False, what="COM inverse kinematics"
+        residual, x0, (robot, com, free), throw=False, what="COM inverse kinematics"
     )
     q, reachable = robot.inverse_kinematics(
         _pose(solution.value, free), branch=branch, return_valid=True

@@ -30,8 +30,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.actuation import actuator_torque_rate, actuator_torques
+from jaxbal._src.com_components import com_components, planned_com
 from jaxbal._src.com_ik import com_inverse_kinematics
-from jaxbal._src.momentum import body_com_positions, center_of_mass, shaking_wrench
+from jaxbal._src.momentum import body_com_positions, shaking_wrench
 from jaxbal._src.peaks import peak_norm, smooth_peak  # noqa: F401  (re-exported)
 from jaxbal._src.profiles import Profile
 from jaxbal._src.robot import Robot
@@ -100,7 +101,8 @@ class ComLine(eqx.Module):
         if self.q_start is None or self.q_end is None:
             return self
         robot, d = self.robot, self.line.start.shape[0]
-        ends = [center_of_mass(robot, q)[:d] for q in (self.q_start, self.q_end)]
+        components = com_components(robot, d)  # the plane it moves in (x-y, x-z, …)
+        ends = [planned_com(robot, q, components) for q in (self.q_start, self.q_end)]
         line = StraightLine(*ends, self.line.profile, self.line.duration)
         poses = self.poses
         if poses is not None:
@@ -197,8 +199,13 @@ def com_line(
 def com_plan(robot, q_start, q_end, profile, duration, free=None, branch=None, dims=None):
     """:func:`com_line` without its check that the plan joins ``q_start`` and ``q_end``
     (for callers that check the sampled motion themselves); the plan still checks its
-    joins where it is sampled (:meth:`ComLine.checked_samples`)."""
-    dims = robot.com_dims if dims is None else dims
+    joins where it is sampled (:meth:`ComLine.checked_samples`).
+
+    The COM is planned in the robot's COM components
+    (:func:`~jaxbal._src.com_components.com_components`): the leading ``dims`` world
+    axes for the built-in robots, the plane it moves in for a mechanism drawn in x-z
+    (``(0, 2)``)."""
+    components = com_components(robot, dims)
     q_start, q_end = (jnp.asarray(q, dtype=float) for q in (q_start, q_end))
     for name, q in (("q_start", q_start), ("q_end", q_end)):
         check_shape(name, q, (robot.dof,))
@@ -207,8 +214,7 @@ def com_plan(robot, q_start, q_end, profile, duration, free=None, branch=None, d
         value = np.asarray(duration, float)  # a subnormal is 0 to XLA's CPU (flushed)
         positive = np.isfinite(value) & (value >= np.finfo(float).tiny)
         raise_if_invalid(positive, "duration must be finite and > 0 [s]", duration)
-    start = center_of_mass(robot, q_start)[:dims]
-    end = center_of_mass(robot, q_end)[:dims]
+    start, end = (planned_com(robot, q, components) for q in (q_start, q_end))
     poses = StraightLine(*_end_effectors(robot, q_start, q_end), profile, duration)
     line = StraightLine(start, end, profile, duration)
     return ComLine(robot, line, free, branch, poses, q_start, q_end)
@@ -245,6 +251,10 @@ def _check_joins(plan: ComLine, q_start, q_end) -> None:
     if np.all(gaps <= JOIN_TOLERANCE):
         return
     hint = ""
+    if plan.robot.branch_size == 0:  # no branch to give: Newton's start picks the mode
+        hint = ("; this robot has no inverse-kinematics branches: its solves start near "
+                "the robot's reference, so start them near the move "
+                "(robot.with_reference(q_start), or keyframe= when loading it)")  # fmt: skip
     if plan.robot.branch_size == 1:
         signs = [s for s in (1, -1) if _joins_with(plan, s, q_start, q_end)]
         hint = f"; branch={signs[0]} joins them" if signs else "; no branch joins them"

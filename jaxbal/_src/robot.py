@@ -147,6 +147,14 @@ class Robot(eqx.Module):
     #: ``eqx.tree_at`` or by an optimiser is refused too (not only by the constructor).
     nonnegative_parameters: ClassVar[tuple[str, ...]] = ()
 
+    @property
+    def com_components(self) -> tuple[int, ...]:
+        """World axes (0, 1, 2) of the COM that planning steers, ``com_dims`` of them:
+        the leading ones by default (``(0, 1)`` for a planar robot in x-y); a mechanism
+        moving in another plane overrides it (an MJCF arm in x-z: ``(0, 2)``; see
+        :mod:`jaxbal._src.com_components`)."""
+        return tuple(range(self.com_dims))
+
     @abc.abstractmethod
     def mass_properties(self) -> Bodies:
         """All moving rigid bodies (links, payload, counter-masses) of the robot."""

@@ -17,7 +17,8 @@ from collections.abc import Sequence
 import jax.numpy as jnp
 import numpy as np
 
-from jaxbal._src.robots.mjcf_parse import moving_components, parse
+from jaxbal._src.robots.mjcf_axes import dependent_axes, pose_axes
+from jaxbal._src.robots.mjcf_parse import parse
 from jaxbal._src.robots.mjcf_robot import MjcfRobot
 from jaxbal._src.robots.mjcf_spec import compile_model
 
@@ -97,12 +98,19 @@ def from_mjcf(
             redundantly actuated mechanism (the DUAL-V) names fewer independent than
             actuated joints.
         end_effector_site: the site whose position is the end-effector pose (default:
-            the model's only site, if it has exactly one).
-        pose_components: world axes of the site position in the pose (default: those
-            along which it can move, e.g. ``(0, 1)`` for a planar mechanism in the x-y
-            plane, at most as many as independent joints).
-        ik_free: joints whose values complete the pose when there are more independent
-            joints than pose components (default: the last independent ones).
+            the model's only site on a moving body, if it has exactly one: a marker on
+            the base is never picked).
+        pose_components: world axes of the site position in the pose (default: the
+            first axes along which it moves independently, at most as many as
+            independent joints: ``(0, 1)`` for a planar mechanism in the x-y plane,
+            ``(0, 2)`` in the x-z plane or in a vertical plane yawed about z, whose x
+            and y are proportional). Axes it cannot move along independently are
+            refused. They are also the COM components planning steers
+            (``robot.com_components``).
+        ik_free: independent joints whose values complete the pose when there are more
+            independent joints than pose components (default: the last independent
+            ones). Given (or with ``pose_components`` given), the pose must have as
+            many coordinates as the mechanism has freedoms.
         payload_body: a moving body whose mass is the design variable ``payload``.
         ignore_armature: accept joint armature (MuJoCo's rotor inertia, which has no
             base reaction) and leave it out; by default it is refused.
@@ -123,8 +131,11 @@ def from_mjcf(
         An :class:`~jaxbal._src.robots.mjcf_robot.MjcfRobot`.
 
     Raises:
-        ValueError: a file MuJoCo cannot compile, an unsupported element (named), an
-            unknown or unsuitable name (the message lists the valid ones).
+        ValueError: a file MuJoCo cannot compile, an unsupported element (named), a
+            model without moving bodies, an unknown or unsuitable name (the message
+            lists the valid ones), ``pose_components`` / ``ik_free`` that cannot make
+            a regular pose (dependent axes, a dependent joint, a count other than the
+            mechanism's freedoms; the message names the option).
     """
     if end_effector_body is not None and end_effector_site is not None:
         raise ValueError("give end_effector_site or end_effector_body, not both")
@@ -158,8 +169,8 @@ def from_mjcf(
     independent_q = _coordinates(parsed, independent, "independent")
 
     site_body, site_pos, components, free = -1, np.zeros(3), (), ()
-    if end_effector_site is None and len(parsed.site_names) == 1:
-        end_effector_site = parsed.site_names[0]
+    if end_effector_site is None:
+        end_effector_site = _only_moving_site(parsed, moving)
     if end_effector_site is not None:
         if end_effector_site not in parsed.site_names:
             raise ValueError(
@@ -170,18 +181,18 @@ def from_mjcf(
         if site_body not in moving:
             raise ValueError(f"site {end_effector_site!r} is on a body fixed to the base")
         if pose_components is None:
-            components = moving_components(model, s)[: len(independent_q)]
+            components = pose_axes(model, s, len(independent_q))
         else:
-            components = tuple(int(c) for c in pose_components)
-            axes = set(components)
-            if not components or not axes <= {0, 1, 2} or len(axes) != len(components):
-                raise ValueError(f"pose_components must be distinct axes 0, 1, 2; got {components}")
+            components = _given_components(model, s, pose_components, end_effector_site)
         free_names = _names(ik_free)
         if free_names is None:
             extra = max(len(independent_q) - len(components), 0)
             free = independent_q[len(independent_q) - extra :]
         else:
             free = _coordinates(parsed, free_names, "ik_free")
+            _check_free(parsed, free, independent_q)
+        if pose_components is not None or free_names is not None:
+            _check_pose_count(parsed, components, free)
     payload = None
     if payload_body is not None:
         payload = _moving_index(parsed, moving, payload_body, "payload_body")
@@ -236,6 +247,67 @@ def from_mjcf(
         counter_names=(),
         payload_body=payload,
     )
+
+
+def _only_moving_site(parsed, moving: tuple[int, ...]) -> str | None:
+    """The default end-effector site: the model's only site on a moving body, if there
+    is exactly one. A site on the base (a ground marker) is never the end effector:
+    auto-picked, it made the model impossible to load."""
+    names = [n for n, b in zip(parsed.site_names, parsed.site_body, strict=True) if b in moving]
+    return names[0] if len(names) == 1 else None
+
+
+def _given_components(model, site: int, given, site_name: str) -> tuple[int, ...]:
+    """A user's ``pose_components``: distinct world axes along which the site moves
+    independently (else every solve of the pose is singular; refused here, at load,
+    rather than as a Newton failure at the first move)."""
+    components = tuple(int(c) for c in given)
+    axes = set(components)
+    if not components or not axes <= {0, 1, 2} or len(axes) != len(components):
+        raise ValueError(f"pose_components must be distinct axes 0, 1, 2; got {components}")
+    if dependent_axes(model, site, components):
+        names = ", ".join("xyz"[c] for c in components)
+        choice = pose_axes(model, site, len(components))
+        raise ValueError(
+            f"pose_components {components}: the site {site_name!r} cannot move along the "
+            f"world axes ({names}) independently (it never moves along one, or they are "
+            f"proportional), so every solve of the pose is singular; independent axes: "
+            f"pose_components={choice}"
+        )
+    return components
+
+
+def _check_free(parsed, free: tuple[int, ...], independent_q: tuple[int, ...]) -> None:
+    """``ik_free`` joints must be independent coordinates: a closed chain's dependent
+    joint is fixed by the loop closures, so its value cannot complete the pose."""
+    for i in free:
+        if i not in independent_q:
+            name = parsed.joint_names[parsed.joint_qpos.index(i)]
+            independent = [parsed.joint_names[parsed.joint_qpos.index(j)] for j in independent_q]
+            raise ValueError(
+                f"ik_free: {name!r} is not an independent joint (the loop closures fix "
+                f"it); name independent joints: {independent}"
+            )
+
+
+def _check_pose_count(parsed, components: tuple[int, ...], free: tuple[int, ...]) -> None:
+    """The pose (``pose_components`` then ``ik_free``) must have as many coordinates as
+    the mechanism has freedoms (``dof`` minus the loop-closure equations): the
+    inverse kinematics is a square Newton solve. Checked at load, naming both options,
+    instead of a count mismatch worded for the loop closures at the first solve."""
+    closures = sum(len(rows) for rows in parsed.closure_rows) + len(parsed.couplings.names)
+    closures += parsed.joint_types.count("ball")
+    freedoms = len(parsed.qpos0) - closures
+    count = len(components) + len(free)
+    if count != freedoms:
+        free_names = [parsed.joint_names[parsed.joint_qpos.index(i)] for i in free]
+        fix = "fewer" if count > freedoms else "more"
+        raise ValueError(
+            f"pose_components {components} and ik_free {free_names} give {count} pose "
+            f"coordinates, but the mechanism has {freedoms} freedoms ({len(parsed.qpos0)} "
+            f"coordinates, {closures} loop-closure equations): give {fix} "
+            "pose_components or ik_free joints"
+        )
 
 
 def from_urdf(source, **options) -> MjcfRobot:

@@ -288,8 +288,9 @@ def parse(model, ignore_armature: bool = False, ignore_passive: bool = False) ->
     """Read a compiled ``MjModel`` (see the module docstring).
 
     Raises:
-        ValueError: an unsupported element (named), or a connect whose anchors are
-            offset along a direction in which they can never move (it cannot close).
+        ValueError: an unsupported element (named), a model without moving bodies (no
+            bodies, or no joints), or a connect whose anchors are offset along a
+            direction in which they can never move (it cannot close).
     """
     import mujoco
 
@@ -305,6 +306,12 @@ def parse(model, ignore_armature: bool = False, ignore_passive: bool = False) ->
     moving = []
     for i in range(nb):
         moving.append(has_joint[i] or (parents[i] >= 0 and moving[parents[i]]))
+    if not any(moving):  # nothing to balance; numpy's einsum below failed on zero bodies
+        what = "no bodies below the worldbody" if nb == 0 else f"no joints (bodies {list(names)})"
+        raise ValueError(
+            f"no moving bodies: the model has {what}; a mechanism needs a body moved by a "
+            "hinge, slide or ball joint"
+        )
     body_rot = np.array([_quat_matrix(model.body_quat[b]) for b in range(1, model.nbody)])
     inertial_rot = np.array([_quat_matrix(model.body_iquat[b]) for b in range(1, model.nbody)])
     inertia = np.einsum("nij,nj,nkj->nik", inertial_rot, model.body_inertia[1:], inertial_rot)
@@ -372,16 +379,4 @@ def parse(model, ignore_armature: bool = False, ignore_passive: bool = False) ->
         site_pos=np.array(model.site_pos, dtype=float).reshape(-1, 3),
         motors=tuple(motors),
         extent=float(model.stat.extent),
-    )
-
-
-def moving_components(model, site: int) -> tuple[int, ...]:
-    """World axes (0, 1, 2) along which a site can move (a planar mechanism's site does
-    not move along the plane normal)."""
-    body = int(model.site_bodyid[site])
-    jac = _point_jacobians(model, [(body, np.array(model.site_pos[site]))], seed=1)[:, 0]
-    gram = np.einsum("kin,kjn->ij", jac, jac)
-    diagonal = np.diag(gram)
-    return tuple(
-        i for i in range(3) if diagonal[i] > RANK_RTOL * max(float(diagonal.max()), 1e-300)
     )

@@ -19,7 +19,9 @@ differentiated implicitly.
 The end-effector pose is the position of a named site (the components
 ``pose_components``, e.g. ``(0, 1)`` for a planar mechanism) followed by the values of
 the joints ``ik_free`` when the mechanism has more independent coordinates than pose
-components (as the 3R's φ). The inverse kinematics is numerical (Newton from the
+components (as the 3R's φ). The site's axes are also the COM components planning steers
+(:attr:`MjcfRobot.com_components`, e.g. ``(0, 2)`` for an arm in the x-z plane). The
+inverse kinematics is numerical (Newton from the
 robot's :attr:`~MjcfRobot.reference` configuration or a ``guess``, which picks the
 assembly mode; no sign branches); a solution, or a closed chain's passive joint,
 outside a limited joint's ``range`` (``joint_range``) is refused as unreachable.
@@ -44,6 +46,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.robot import Bodies, Robot
+from jaxbal._src.robots import mjcf_design
 from jaxbal._src.robots.mjcf_couplings import coupling_residuals
 from jaxbal._src.robots.mjcf_kinematics import point_in_world, world_frames
 from jaxbal._src.robots.mjcf_solve import closure, closure_motion, inverse_kinematics, pose_motion
@@ -164,9 +167,16 @@ class MjcfRobot(Robot):
         return self.actuated_coordinates
 
     @property
+    def com_components(self) -> tuple[int, ...]:
+        """World axes of the COM that planning steers (:mod:`jaxbal._src.com_components`):
+        the site's pose axes, the plane the mechanism moves in (``(0, 2)`` for an arm
+        drawn in the vertical x-z plane; ``[:2]`` planned its world x, y); all three
+        without a site."""
+        return self.pose_components if self.site_name is not None else (0, 1, 2)
+
+    @property
     def com_dims(self) -> int:
-        """2 for a mechanism whose pose is the site's ``(x, y)``, else 3."""
-        return 2 if self.pose_components == (0, 1) else 3
+        return len(self.com_components)
 
     @property
     def dependent(self) -> tuple[int, ...]:
@@ -344,18 +354,12 @@ class MjcfRobot(Robot):
         check_shape("reference", q, (self.dof,))
         return eqx.tree_at(lambda r: r.reference, self, q)
 
-    # --- design variables -----------------------------------------------------------
+    # --- design variables (jaxbal._src.robots.mjcf_design) ---------------------------
 
     def design(self) -> dict[str, Array]:
         """``counter_mass (k,)`` [kg] and ``counter_position (k, 3)`` [m, body frame]
         when counter-masses were added; ``payload`` [kg], the mass of ``payload_body``."""
-        design = {}
-        if self.counter_names:
-            design["counter_mass"] = self.counter_mass
-            design["counter_position"] = self.counter_position
-        if self.payload_body is not None:
-            design["payload"] = self.mass[self.payload_body]
-        return design
+        return mjcf_design.design(self)
 
     def with_design(self, design: Mapping) -> MjcfRobot:
         """The robot with some design variables replaced (see :meth:`design`).
@@ -364,32 +368,16 @@ class MjcfRobot(Robot):
             ValueError: an unknown name (``payload`` without a ``payload_body``
                 included) or a wrong shape.
         """
-        if "payload" in design and self.payload_body is None:
-            raise ValueError(
-                "unknown design variable 'payload': name a payload body (payload_body=) "
-                f"in from_mjcf; this robot has {sorted(self.design())}"
-            )
-        robot = super().with_design({k: v for k, v in design.items() if k != "payload"})
-        if "payload" in design:
-            value = jnp.asarray(design["payload"], dtype=float)
-            check_shape("design['payload']", value, ())
-            mass = robot.mass.at[self.payload_body].set(value)
-            robot = eqx.tree_at(lambda r: r.mass, robot, mass)
-        return robot
+        return mjcf_design.with_design(self, design)
 
     def design_lower_bounds(self) -> dict[str, float]:
         """Masses ≥ 0; counter positions ≥ −:meth:`position_bound` per coordinate."""
-        bounds = {name: 0.0 for name in self.design()}
-        if "counter_position" in bounds:
-            bounds["counter_position"] = -self.position_bound()
-        return bounds
+        return mjcf_design.design_lower_bounds(self)
 
     def position_bound(self) -> float:
         """Ten times the mechanism's size (largest body offset, anchor or site
         distance, at least 1 m) [m]: the default bound of counter positions."""
-        arrays = (self.body_pos, self.joint_pos, self.anchor1, self.anchor2, self.site_pos)
-        sizes = [float(np.abs(np.asarray(a)).max(initial=0.0)) for a in arrays]
-        return 10.0 * max(1.0, *sizes)
+        return mjcf_design.position_bound(self)
 
     # --- MuJoCo -----------------------------------------------------------------------
 
