@@ -364,8 +364,8 @@ def test_a_non_finite_wrench_sample_is_refused_not_read_as_rest(bad):
     """One NaN (or inf) force sample gave a residual amplitude of exactly 0 — "the base
     is at rest" — eagerly and under ``jit`` (the zero-safe square root mapped NaN to 0);
     ``peak_norm`` skipped the NaN row and returned the finite peak. Now a ValueError
-    naming the sample (eagerly), a runtime error under ``jit``, and a NaN peak under
-    ``jit`` (never a finite number)."""
+    naming the sample (eagerly), a runtime error under ``jit`` (``peak_norm`` too), and a
+    NaN peak under ``jit`` with the runtime checks off (never a finite number)."""
     from jaxbal.planning import peak_norm
     from jaxbal.vibration import base_response, residual_amplitude, rigid_base
 
@@ -382,5 +382,8 @@ def test_a_non_finite_wrench_sample_is_refused_not_read_as_rest(bad):
         jax.block_until_ready(jax.jit(lambda f: residual_amplitude(base, times, f, moment))(broken))
     with pytest.raises(ValueError, match=r"non-finite rows \[20\]"):
         peak_norm(broken)
-    assert np.isnan(float(jax.jit(peak_norm)(broken)))
+    with pytest.raises(Exception, match="peak_norm: vectors must be finite"):
+        jax.block_until_ready(jax.jit(peak_norm)(broken))
+    with jaxbal.runtime_checks(False):
+        assert np.isnan(float(jax.jit(peak_norm)(broken)))
     assert float(peak_norm(force)) > 0
