@@ -18,6 +18,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import slow_for
 
 import jaxbal
 from jaxbal import design
@@ -36,7 +37,7 @@ def test_elbow_angle_is_valid_only_strictly_inside():
     np.testing.assert_allclose(float(slope), -1.0 / np.sqrt(0.75), rtol=1e-14)
 
 
-@pytest.mark.parametrize("q2", [0.0, np.pi])  # stretched, folded
+@pytest.mark.parametrize("q2", slow_for([0.0, np.pi], np.pi))  # stretched, folded (twin)
 def test_2r_pose_on_the_singular_boundary_is_refused(q2):
     arm = jaxbal.robots.planar_2r()
     pose = arm.end_effector(jnp.array([0.3, q2]))
@@ -52,6 +53,7 @@ def test_2r_pose_on_the_singular_boundary_is_refused(q2):
     np.testing.assert_allclose(np.asarray(product), np.eye(2), atol=1e-8)
 
 
+@pytest.mark.slow  # make test-all: the 2R's twin (the same two_link_ik)
 def test_scara_stretched_pose_is_refused():
     robot = jaxbal.robots.scara()
     pose = robot.end_effector(jnp.array([0.2, 0.0, 0.1, 0.05]))

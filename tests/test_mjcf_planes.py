@@ -199,3 +199,13 @@ def test_pose_options_that_fit_load():
     robot = from_mjcf(ARM_XZ, pose_components=(0,), ik_free="j2")
     assert robot.pose_labels() == ("tip.x", "j2")
     assert from_mjcf(FIVE_BAR, end_effector_site="tip").pose_components == (0, 1)
+
+
+def test_a_moving_body_without_mass_names_the_missing_inertial():
+    """A URDF link without ``<inertial>`` gave MuJoCo's "mass and inertia of moving
+    bodies must be larger than mjMINVAL" alone; now also what to add."""
+    urdf = """<robot name="x"><link name="base"/><link name="l1"/>
+    <joint name="j" type="revolute"><parent link="base"/><child link="l1"/>
+    <axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>"""
+    with pytest.raises(ValueError, match=r"(?s)mjMINVAL.*give it an <inertial>"):
+        from_urdf(urdf)

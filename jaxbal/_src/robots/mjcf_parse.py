@@ -112,7 +112,11 @@ def load_model(source):
             return mujoco.MjModel.from_xml_string(text)
         return mujoco.MjModel.from_xml_path(str(path))
     except ValueError as error:
-        raise ValueError(f"MuJoCo could not compile the model: {error}") from None
+        hint = ""
+        if "mjMINVAL" in str(error):  # MuJoCo's words for a body without mass
+            hint = (" (a moving body has no mass: give it an <inertial> (URDF, MJCF) or "
+                    "geoms with a density or mass, or weld it to a body that has one)")  # fmt: skip
+        raise ValueError(f"MuJoCo could not compile the model: {error}{hint}") from None
 
 
 def _name(model, kind, index: int, fallback: str) -> str:
