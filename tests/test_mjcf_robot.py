@@ -824,9 +824,21 @@ def test_keyframe_reference_and_a_singular_start_named_with_its_remedies():
     with pytest.raises(ValueError, match=r"unknown keyframe 'home'; keyframes: \['bent'\]"):
         from_mjcf(_arm(key, inside=tip), keyframe="home")
     coaxial = _arm(inside=tip).replace('<body name="l2" pos="0.2 0 0">', '<body name="l2">')
-    robot = from_mjcf(coaxial, end_effector_site="tip")
-    start = robot.end_effector(jnp.array([0.3, 0.2]))
-    with pytest.raises(ValueError, match="singular configuration of the pose tip.x, tip.y"):
+    # the tip's x and y move together (only q1 + q2 counts): the default pose is x and
+    # the joint j2, a regular choice, and the singular (x, y) is refused at load
+    assert from_mjcf(coaxial, end_effector_site="tip").pose_labels() == ("tip.x", "j2")
+    with pytest.raises(ValueError, match="pose_components"):
+        from_mjcf(coaxial, end_effector_site="tip", pose_components=(0, 1))
+    # singular at the start: three joints, the first two coaxial, j3 held as ik_free
+    third = (
+        '<body name="l3" pos="0.2 0 0"><joint name="j3" axis="0 0 1"/>'
+        '<inertial pos="0.1 0 0" mass="1" diaginertia="1e-3 1e-2 1e-2"/>'
+        '<site name="tip" pos="0.2 0 0"/></body>'
+    )
+    xml = _arm(key, inside=third).replace('<body name="l2" pos="0.2 0 0">', '<body name="l2">')
+    robot = from_mjcf(xml, end_effector_site="tip", keyframe="bent")
+    start = robot.end_effector(robot.reference)
+    with pytest.raises(ValueError, match="singular configuration of the pose tip.x, tip.y, j3"):
         pose_samples(robot, start, start + 0.01, 0.1, 5)
 
 

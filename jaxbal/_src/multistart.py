@@ -37,7 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.design_loss import _bounds, _objective_terms
-from jaxbal._src.joint_codesign import JointSolution, joint_codesign, payload_metrics
+from jaxbal._src.joint_codesign import JointSolution, _floors, joint_codesign, payload_metrics
 from jaxbal._src.metrics import check_design_names, metric_name
 from jaxbal._src.robot import Robot
 
@@ -165,8 +165,10 @@ def multistart_joint_codesign(
     if scales is None:  # joint_codesign's default scales, fixed at the given start
         terms, _ = _objective_terms(objective)
         values = np.asarray(payload_metrics(given, motion, trajectory, payloads, terms))
-        scales = {metric_name(m): float(abs(v)) for m, v in zip(terms, values.mean(axis=0),
-                                                                strict=True)}  # fmt: skip
+        theta = {k: jnp.asarray(v, float) for k, v in trajectory.items()}
+        floors = np.asarray(_floors(given, motion, theta, terms))  # as joint_codesign's
+        scales = {metric_name(m): float(max(abs(v), f))
+                  for m, v, f in zip(terms, values.mean(axis=0), floors, strict=True)}  # fmt: skip
     lows, highs, two = _bounds(given, free, lower, upper)
     rng = np.random.default_rng(seed)
     plan = [("given", (dict(trajectory), {}))]
