@@ -89,7 +89,7 @@ def test_xz_com_inverse_kinematics(arm_xz):
     q = numerical_com_inverse_kinematics(arm_xz, target, guess=arm_xz.end_effector(q_true))
     np.testing.assert_allclose(q, q_true, atol=1e-8)
     np.testing.assert_allclose(planned_com(arm_xz, q, (0, 2)), target, atol=1e-10)
-    # a world COM (the plan keeps the x-z arm's line in space) gives its (x, z)
+    # a world COM (a user's center_of_mass as the target) gives its (x, z)
     q3 = numerical_com_inverse_kinematics(arm_xz, com, guess=arm_xz.end_effector(q_true))
     np.testing.assert_array_equal(q3, q)
 

@@ -79,9 +79,9 @@ def planned_com(robot, q, components: tuple[int, ...]):
 
 def world_com_target(robot, com):
     """A COM target in the robot's own components: a ``(3,)`` world COM given to a
-    robot that steers fewer, non-leading axes is projected onto them (a COM plan of
-    such a robot keeps its line in space, see :func:`jaxbal.planning.com_line`); any
-    other target is returned as it is."""
+    robot that steers fewer, non-leading axes is projected onto them (a user's
+    ``center_of_mass(robot, q)`` as the target of an x-z arm); any other target is
+    returned as it is (:func:`jaxbal.planning.com_line` plans in the components)."""
     own = _own(robot)
     if com.shape == (3,) and len(own) < 3 and not is_leading(own):
         return com[np.asarray(own, dtype=int)]
