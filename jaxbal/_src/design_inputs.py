@@ -19,6 +19,7 @@ from jaxbal._src.metrics import metric_name, resolve_metric
 from jaxbal._src.payload_aggregate import ROBUST
 from jaxbal._src.robot import Robot
 from jaxbal._src.robot_checks import check_robot
+from jaxbal._src.validation import check_positive_number
 
 __all__ = [
     "BOUND_RTOL",
@@ -64,8 +65,7 @@ def check_scales(scales: Mapping[str, float] | None, terms) -> dict[str, float]:
     for name, scale in dict(scales or {}).items():
         if name not in names:
             raise ValueError(f"scales names {name!r}, not an objective metric of {sorted(names)}")
-        if not (np.ndim(scale) == 0 and np.isfinite(scale) and scale > 0):
-            raise ValueError(f"scales[{name!r}] must be a finite number > 0, got {scale!r}")
+        check_positive_number(f"scales[{name!r}]", scale)
     return dict(scales or {})
 
 

@@ -36,7 +36,7 @@ import numpy as np
 from jaxbal._src.metrics import Metric, Motion, as_motion, check_design_names, resolve_metric
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
-from jaxbal._src.validation import checked_call, runtime_checks
+from jaxbal._src.validation import check_positive_number, checked_call, runtime_checks
 
 __all__ = ["Sensitivity", "payload_sensitivity", "sensitivity"]
 
@@ -146,9 +146,8 @@ def sensitivity(
     """
     resolve_metric(metric)
     if check:
-        for what, x in (("rel_step", rel_step), ("rtol", rtol)):
-            if not (np.isscalar(x) and np.isfinite(x) and x > 0):
-                raise ValueError(f"{what} must be a finite number > 0, got {x!r}")
+        check_positive_number("rel_step", rel_step)
+        check_positive_number("rtol", rtol)
     design = robot.design()
     names = tuple(design) if wrt is None else check_design_names(robot, wrt)
     if not names:

@@ -49,7 +49,7 @@ from jaxbal._src.metrics import Metric, Motion, check_design_names, resolve_metr
 from jaxbal._src.robot import Robot
 from jaxbal._src.sensitivity import _metric_at, _value_and_grad
 from jaxbal._src.tolerance_search import ENDS, lower_bounds, search
-from jaxbal._src.validation import checked_call
+from jaxbal._src.validation import check_positive_number, checked_call
 
 __all__ = ["FLAT_RTOL", "STATIONARY_SHARE", "ZERO_METRIC", "Tolerance", "tolerance"]
 
@@ -188,9 +188,8 @@ def tolerance(
         )
     numbers = {"rise": rise, "allowed": allowed, "xtol": xtol, "reach": reach}
     for name, number in numbers.items():
-        real = isinstance(number, int | float | np.number) and not isinstance(number, bool)
-        if number is not None and not (real and np.isfinite(number) and number > 0):
-            raise ValueError(f"{name} must be a finite number > 0, got {number!r}")
+        if number is not None:
+            check_positive_number(name, number)
     rise = 0.01 if rise is None and allowed is None else rise
     design = robot.design()
     names = tuple(design) if wrt is None else check_design_names(robot, wrt)
