@@ -1,4 +1,5 @@
-"""Eager checks of a co-design's inputs, shared by ``codesign`` and ``joint_codesign``.
+"""Eager checks of a co-design's inputs, shared by ``codesign`` and ``joint_codesign`` (and
+of the numeric options of ``sensitivity`` and ``tolerance``: :func:`check_positive_number`).
 
 Each raises ``ValueError`` naming the offending input *before* anything compiles or
 optimises. Without them a bad input ran a whole optimisation and came back as a number:
@@ -19,7 +20,6 @@ from jaxbal._src.metrics import metric_name, resolve_metric
 from jaxbal._src.payload_aggregate import ROBUST
 from jaxbal._src.robot import Robot
 from jaxbal._src.robot_checks import check_robot
-from jaxbal._src.validation import check_positive_number
 
 __all__ = [
     "BOUND_RTOL",
@@ -28,6 +28,7 @@ __all__ = [
     "check_payloads",
     "check_penalty",
     "check_robust",
+    "check_positive_number",
     "check_rounds",
     "check_scales",
     "start_inside",
@@ -56,6 +57,15 @@ def check_constraints(constraints: Mapping[Any, float] | None):
                 "so the budget cannot be met"
             )
     return constrained, bounds
+
+
+def check_positive_number(name: str, value) -> None:
+    """Raise ``ValueError`` naming ``value`` unless it is a real number (or a 0-d real
+    array; not a bool), finite and > 0: a step, a tolerance, a scale given as an option."""
+    number = np.asarray(value)  # a bool, string, None or sequence: not of kind i, u, f
+    real = number.ndim == 0 and number.dtype.kind in "iuf"
+    if not (real and np.isfinite(number) and number > 0):
+        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
 
 
 def check_scales(scales: Mapping[str, float] | None, terms) -> dict[str, float]:

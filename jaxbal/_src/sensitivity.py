@@ -33,10 +33,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from jaxbal._src.design_inputs import check_positive_number
 from jaxbal._src.metrics import Metric, Motion, as_motion, check_design_names, resolve_metric
 from jaxbal._src.robot import Robot
 from jaxbal._src.types import Array, Scalar
-from jaxbal._src.validation import check_positive_number, checked_call, runtime_checks
+from jaxbal._src.validation import checked_call, runtime_checks
 
 __all__ = ["Sensitivity", "payload_sensitivity", "sensitivity"]
 

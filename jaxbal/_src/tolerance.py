@@ -45,11 +45,12 @@ import jax
 import numpy as np
 from jax.flatten_util import ravel_pytree
 
+from jaxbal._src.design_inputs import check_positive_number
 from jaxbal._src.metrics import Metric, Motion, check_design_names, resolve_metric
 from jaxbal._src.robot import Robot
 from jaxbal._src.sensitivity import _metric_at, _value_and_grad
 from jaxbal._src.tolerance_search import ENDS, lower_bounds, search
-from jaxbal._src.validation import check_positive_number, checked_call
+from jaxbal._src.validation import checked_call
 
 __all__ = ["FLAT_RTOL", "STATIONARY_SHARE", "ZERO_METRIC", "Tolerance", "tolerance"]
 

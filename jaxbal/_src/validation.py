@@ -41,15 +41,6 @@ def is_traced(*values) -> bool:
 ROUNDING = 1e-12
 
 
-def check_positive_number(name: str, value) -> None:
-    """Raise ``ValueError`` naming ``value`` unless it is a real number (or a 0-d real
-    array; not a bool), finite and > 0: a step, a tolerance, a scale given as an option."""
-    number = np.asarray(value)  # a bool, string, None or sequence: not of kind i, u, f
-    real = number.ndim == 0 and number.dtype.kind in "iuf"
-    if not (real and np.isfinite(number) and number > 0):
-        raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-
-
 def check_nonnegative(name: str, value) -> None:
     """Raise ``ValueError`` if a concrete ``value`` has a non-finite entry or one below
     ``−ROUNDING`` (the tolerance of the physics' own checks, so that a constructor and
