@@ -97,4 +97,6 @@ def numerical_com_inverse_kinematics(
     valid = solution.converged & reachable
     if return_valid:
         return q, valid
-    return guard_solution(q, ~valid, f"COM target not reachable by {type(robot).__name__}", com)
+    return guard_solution(
+        q, ~valid, f"COM target not reachable by {type(robot).__name__}", com, robot=robot
+    )

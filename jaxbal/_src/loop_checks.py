@@ -74,16 +74,33 @@ def loops_faulty(robot: Robot, q, qd, qdd) -> Array:
     return ~(loop_excess(robot, q, qd, qdd) <= 1.0)
 
 
-def check_loops_eagerly(robot: Robot, q, qd, qdd) -> None:
+def _precision(*states) -> str:
+    """A hint for a state given in less than float64 (its rounding, ~1e-7 relative in
+    float32, is above the tolerance: the message's question about the geometry would
+    mislead), else ``""``."""
+    dtypes = {getattr(x, "dtype", np.dtype(float)) for x in states}
+    low = sorted(str(d) for d in dtypes if jnp.issubdtype(d, jnp.floating) and d.itemsize < 8)
+    if not low:
+        return ""
+    return (
+        f" [the state is {', '.join(low)}: its rounding alone exceeds the tolerance; "
+        "jaxbal computes in float64: pass float64 arrays]"
+    )
+
+
+def check_loops_eagerly(robot: Robot, q, qd, qdd, given=None) -> None:
     """Raise ``ValueError`` (:data:`MESSAGE` and the relative residual) if a concrete
     state of a closed chain is off its loops (one small program compiled per robot
     structure, not operation by operation). The state is finite (checked before): a
-    residual that overflows is refused too, as the compiled check does."""
+    residual that overflows is refused too, as the compiled check does. ``given``: the
+    state as the caller passed it (before its conversion to float64), for the hint of a
+    float32 state."""
     if not has_loops(robot):
         return
     excess = float(_excesses(robot, q[None], qd[None], qdd[None])[0])
     if not excess <= 1.0:
-        raise ValueError(f"{MESSAGE}: {excess:.3g}")
+        hint = _precision(*(given or (q, qd, qdd)))
+        raise ValueError(f"{MESSAGE}: {excess:.3g}{hint}")
 
 
 @eqx.filter_jit
@@ -105,4 +122,5 @@ def check_samples_eagerly(robot: Robot, q, qd, qdd) -> None:
     if bad.size:
         listed = {int(k): float(f"{excess[k]:.3g}") for k in bad[:8]}
         more = f" (and {bad.size - 8} more)" if bad.size > 8 else ""
-        raise ValueError(f"{MESSAGE} at samples {{sample: residual}}: {listed}{more}")
+        hint = _precision(q, qd, qdd)
+        raise ValueError(f"{MESSAGE} at samples {{sample: residual}}: {listed}{more}{hint}")

@@ -19,15 +19,25 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
+from jaxbal._src.robot_checks import checked_parameters
 from jaxbal._src.validation import guard, is_traced
 
 
-def guard_solution(value, invalid, message: str, offending, names=None):
+def guard_solution(value, invalid, message: str, offending, names=None, robot=None):
     """``value`` (a pytree of a solver's outputs for one problem), NaN where any entry
     of ``invalid`` is True when traced, then checked by
     :func:`~jaxbal._src.validation.guard` (eagerly a ``ValueError`` naming
     ``offending``, under ``jit`` a runtime error unless the checks are off). Gradients
-    of a valid solution are unchanged (the NaN is a constant branch)."""
+    of a valid solution are unchanged (the NaN is a constant branch).
+
+    ``robot``, the solver's robot: eagerly, its parameters are checked first
+    (:func:`~jaxbal._src.robot_checks.checked_parameters`), so that a NaN length set
+    with ``eqx.tree_at`` is named as such, not as an unreachable pose, and a negative
+    length (a mirrored link, which the closed forms solve as if it were positive) is
+    refused by the inverse kinematics as by the physics. Under a trace the physics
+    that uses the solution checks the robot."""
+    if robot is not None and not is_traced(value, invalid, robot):
+        checked_parameters(robot, None)
     if is_traced(value, invalid):
         failed = jnp.any(invalid)
         value = jax.tree.map(lambda x: jnp.where(failed, jnp.nan, x), value)

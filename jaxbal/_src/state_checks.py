@@ -36,8 +36,8 @@ class StateCheck:
     runtime checks on), so that it computes the residual with its physics.
     """
 
-    def __init__(self, robot: Robot, state: tuple, concrete: bool, loops: bool):
-        self.robot, self.state, self.concrete = robot, state, concrete
+    def __init__(self, robot: Robot, state: tuple, concrete: bool, loops: bool, given=None):
+        self.robot, self.state, self.concrete, self.given = robot, state, concrete, given
         # eagerly (concrete robot and state, outside any trace: a closed-over state
         # under a user's jit is staged, its compiled check would give a tracer)
         self.eager_loops = loops and concrete and not is_traced(robot) and not _under_trace()
@@ -60,7 +60,7 @@ class StateCheck:
         :func:`~jaxbal._src.loop_checks.closure_excess` the caller computed with its
         outputs; else computed here)."""
         if self.eager_loops:
-            check_loops_eagerly(self.robot, *self.state)
+            check_loops_eagerly(self.robot, *self.state, given=self.given)
         if not (self.traced_loops and runtime_checks_enabled()):
             return outputs
         excess = closure_excess(self.robot, self.state[0]) if excess is None else excess
@@ -79,7 +79,8 @@ def state_check(robot: Robot, q, qd, qdd, loops: bool = False, gravity=None):
     concrete state is checked at once for finiteness, before anything is evaluated, and
     so is a concrete ``gravity`` (a NaN one was reported as an overflow of the robot's
     largest parameter)."""
-    q, qd, qdd = (jnp.asarray(a, dtype=float) for a in (q, qd, qdd))
+    given = (q, qd, qdd)
+    q, qd, qdd = (jnp.asarray(a, dtype=float) for a in given)
     for name, value in (("q", q), ("qd", qd), ("qdd", qdd)):
         check_shape(name, value, (robot.dof,))
     check_leaves(robot)
@@ -90,7 +91,7 @@ def state_check(robot: Robot, q, qd, qdd, loops: bool = False, gravity=None):
     if gravity is not None and not is_traced(gravity):
         g = np.asarray(gravity, dtype=float)
         guard(None, ~np.isfinite(g), "gravity must be finite [m/s^2]", g)
-    return q, qd, qdd, StateCheck(robot, (q, qd, qdd), concrete, loops)
+    return q, qd, qdd, StateCheck(robot, (q, qd, qdd), concrete, loops, given)
 
 
 def checked_state(robot: Robot, q, qd, qdd):

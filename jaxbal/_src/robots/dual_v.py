@@ -311,7 +311,7 @@ class DualV(PlanarRobot):
         if return_valid:
             return q, valid
         message = "DUAL-V platform pose outside the workspace or on its singular boundary"
-        return guard_solution(q, ~valid, message, pose_given)
+        return guard_solution(q, ~valid, message, pose_given, robot=self)
 
     def design(self) -> dict:
         """``counter_mass`` ``(4,)`` [kg]: the mounted counter-masses (tuning fraction

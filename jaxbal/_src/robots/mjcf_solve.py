@@ -101,7 +101,7 @@ def _checked(robot, q, converged, offending, message: str, what: str):
     values, with the ranges; under ``jit`` a runtime error): Newton solves the
     equations, not the ranges, so a pose reached only outside a joint's range came back
     as valid (a slide 26 times past its limit)."""
-    q = guard_solution(q, ~converged, message, offending)
+    q = guard_solution(q, ~converged, message, offending, robot=robot)
     if not robot.joint_range:
         return q
     limited = ", ".join(

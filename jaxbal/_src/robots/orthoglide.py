@@ -260,8 +260,8 @@ class Orthoglide(Robot):
         radicand = jnp.where(valid, radicand, self.length**2)
         rho = p + signs * jnp.sqrt(jnp.maximum(radicand, 1e-30))
         q = jnp.concatenate([rho, p])
-        out_of_reach = "platform point (pose) out of reach of the Orthoglide legs"
-        return (q, valid) if return_valid else guard_solution(q, ~valid, out_of_reach, given)
+        text = "platform point (pose) out of reach of the Orthoglide legs"
+        return (q, valid) if return_valid else guard_solution(q, ~valid, text, given, robot=self)
 
     def forward_kinematics(self, rho, return_valid: bool = False):
         """Platform point ``p (3,)`` [m] from the inputs ``ρ (3,)`` [m], closed form.
@@ -289,8 +289,8 @@ class Orthoglide(Robot):
         # (qb < 0 in the workspace).
         px = 2.0 * qc / (-qb + root)
         p = jnp.stack([px, ay + by * px, az + bz * px])
-        unassemblable = "inputs rho not assemblable by the Orthoglide"
-        return (p, valid) if return_valid else guard_solution(p, ~valid, unassemblable, rho)
+        text = "inputs rho not assemblable by the Orthoglide"
+        return (p, valid) if return_valid else guard_solution(p, ~valid, text, rho, robot=self)
 
     # --- centre of mass ---------------------------------------------------------------
 
@@ -338,8 +338,8 @@ class Orthoglide(Robot):
         valid = solution.converged & reachable
         rho = p + signs * jnp.sqrt(jnp.maximum(self._radicands(p), 1e-30))
         q = jnp.concatenate([rho, p])
-        unreachable = "COM target not reachable by the Orthoglide"
-        return (q, valid) if return_valid else guard_solution(q, ~valid, unreachable, com)
+        text = "COM target not reachable by the Orthoglide"
+        return (q, valid) if return_valid else guard_solution(q, ~valid, text, com, robot=self)
 
     def mujoco_tree(self) -> Tree:
         """Sliders, parallelograms on ball joints closed by ``connect`` at P, the

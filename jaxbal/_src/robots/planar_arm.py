@@ -211,7 +211,7 @@ class PlanarArm(PlanarRobot):
             return q, valid
         # under jit too (a clipped, silently wrong q before): see validation.guard
         message = "end-effector pose outside the workspace or on its singular boundary"
-        return guard_solution(q, ~valid, message, pose_given)
+        return guard_solution(q, ~valid, message, pose_given, robot=self)
 
     def com_inverse_kinematics(
         self, com, free=None, *, branch=None, return_valid: bool = False, guess=None
@@ -279,7 +279,7 @@ class PlanarArm(PlanarRobot):
         if return_valid:
             return q, valid
         message = "COM target not reachable by the arm, or on its singular boundary"
-        return guard_solution(q, ~valid, message, com)
+        return guard_solution(q, ~valid, message, com, robot=self)
 
     # --- MuJoCo --------------------------------------------------------------------
 

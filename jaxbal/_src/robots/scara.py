@@ -227,7 +227,7 @@ class Scara(Robot):
         if return_valid:
             return q, valid
         message = "SCARA end-effector pose out of reach or on its singular boundary (x, y, φ, z)"
-        return guard_solution(q, ~valid, message, pose_given)  # under jit too
+        return guard_solution(q, ~valid, message, pose_given, robot=self)  # under jit too
 
     # --- MuJoCo --------------------------------------------------------------------
 
