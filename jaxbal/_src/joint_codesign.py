@@ -40,6 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src import design_inputs as inputs
+from jaxbal._src import payload_aggregate as agg
 from jaxbal._src.base_vibration_metric import refuse_rescaled_times
 from jaxbal._src.design import CONSTRAINT_PENALTY, FEASIBILITY_RTOL
 from jaxbal._src.design_loss import (
@@ -60,7 +61,6 @@ from jaxbal._src.metrics import Motion, check_design_names, finite_array, metric
 from jaxbal._src.momentum import replayed
 from jaxbal._src.motion_factories import check_planned, check_start
 from jaxbal._src.optimize import minimize
-from jaxbal._src.payload_aggregate import aggregate, check_aggregable, warn_at_kink
 from jaxbal._src.robot import Robot
 from jaxbal._src.robot_checks import check_robot
 from jaxbal._src.types import Array, Scalar
@@ -84,8 +84,8 @@ class JointSolution(NamedTuple):
         value: final loss (dimensionless); ``initial_value`` where the optimiser starts
             (a variable on a bound moved just inside it: ~1e-5 off the given design's).
         metrics: name -> ``(before, after)`` over the payloads [SI]: an objective's mean,
-            quadratic mean, or (``robust="max"``) its smooth maximum, up to ``s log(n)/k``
-            *below* the worst (``payload_metrics``); a constraint-only metric's worst payload.
+            quadratic mean or (``robust="max"``) worst payload, exactly (the loss takes a
+            smooth maximum, up to ``s log(n)/k`` below it); a constraint-only metric's worst.
         constraints: name -> ``(worst value over payloads, bound)`` after [SI].
         feasible: every constraint satisfied within :data:`FEASIBILITY_RTOL`.
         converged, steps, grad_norm, history, at_bound: as
@@ -134,7 +134,7 @@ def _loss_values(candidate: Robot, theta, motion: MotionFactory, joint: _Joint):
     metrics = problem.terms + problem.constrained
     values = _per_payload(candidate, motion, theta, joint.payloads, metrics)
     n = len(problem.terms)
-    objective = aggregate(values[:, :n], problem.scales, joint.robust, joint.sharpness)
+    objective = agg.aggregate(values[:, :n], problem.scales, joint.robust, joint.sharpness)
     constrained = jnp.max(values[:, n:], axis=0) if problem.constrained else None
     return _combine(objective, constrained, problem), values
 
@@ -322,7 +322,7 @@ def joint_codesign(
     _, _, before = evaluate(x_start, joint, at_start=True)
     if not np.all(np.isfinite(before)):
         _raise_invalid_start(robot, motion, theta0, payloads, everything, before)
-    check_aggregable(robust, before[:, :n])
+    agg.check_aggregable(robust, before[:, :n])
     floors = np.asarray(_floors(robot, motion, theta0, everything))
     nominal = np.maximum(np.abs(np.mean(before, axis=0)), floors)
     # a given scale is used as given (it was raised to the floor: another objective)
@@ -363,14 +363,13 @@ def joint_codesign(
     theta = {k: jnp.asarray(v) for k, v in theta.items()}
     names = [metric_name(m) for m in everything]
     aggregated = [
-        np.concatenate([np.asarray(aggregate(v[:, :n], problem.scales, robust, sharp)),
-                        np.max(v[:, n:], axis=0)])
+        np.concatenate([agg.aggregate_numpy(v[:, :n], robust), np.max(v[:, n:], axis=0)])
         for v in (before, after)
     ]  # fmt: skip
     check_planned(optimised, motion, theta, payloads)  # a NaN motion was seen by no one
     worst, (converged, steps, grad_norm, history) = np.max(after, axis=0)[where], status
     if robust == "mean" and not converged:  # a kink of the mean? (warns, naming it)
-        warn_at_kink(after[:, :n], problem.scales, names[:n], payloads, grad_norm)
+        agg.warn_at_kink(after[:, :n], problem.scales, names[:n], payloads, grad_norm)
     excess = worst - np.asarray(bounds)
     return JointSolution(
         design=optimised.design(),

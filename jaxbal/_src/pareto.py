@@ -55,7 +55,8 @@ class ParetoFront(NamedTuple):
 
     Attributes:
         weights: ``(n,)`` weight ``w`` of the second metric.
-        values: ``(n, 2)`` aggregated metric values [SI].
+        values: ``(n, 2)`` aggregated metric values [SI] (``JointSolution.metrics``: for
+            ``robust="max"`` the worst payload, not the loss's smooth maximum).
         solutions: the :class:`~jaxbal.design.JointSolution` of every weight.
         efficient: ``(n,)`` True where no other point of the front dominates it.
         feasible: ``(n,)`` every constraint satisfied.
