@@ -266,6 +266,13 @@ def test_refused_under_jit_and_in_a_motion_of_other_times(move):
         spoiled(-1.0).block_until_ready()
     with pytest.raises(ValueError, match="the motion has 401 samples but"):
         BaseVibration(base, times[:100])(arm, motion)
+    # the same count at another move's times (it used them silently: 126 for 209 µm)
+    with pytest.raises(ValueError, match=r"as if over about 0\.5 s"):
+        BaseVibration(base, jaxbal.sample_times(0.7, 401))(arm, motion)
+    # a joint angle wrapped by a whole turn between two samples is no mismatch
+    wrapped = motion._replace(q=motion.q.at[200:, 0].add(2 * np.pi))
+    residual = BaseVibration(base, times)
+    assert float(residual(arm, wrapped)) == pytest.approx(float(residual(arm, motion)), rel=1e-9)
     factory = jaxbal.design.TrapezoidLine(
         jnp.array([0.225, 0.25]), jnp.array([0.225, 0.70]), jaxbal.sample_times(1.0, 401)
     )

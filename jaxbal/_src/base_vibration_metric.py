@@ -5,7 +5,9 @@
 :mod:`jaxbal._src.base_vibration`) along a motion sampled at fixed times, the robot's
 mass riding on the base if asked. A ``Motion`` carries no times, so a motion factory
 whose trajectory variable ``"duration"`` rescales them is refused
-(:func:`refuse_rescaled_times`, called by :func:`jaxbal.design.joint_codesign`).
+(:func:`refuse_rescaled_times`, called by :func:`jaxbal.design.joint_codesign`), and a
+concrete motion whose samples are not at the metric's times
+(:func:`~jaxbal._src.sampled_at.check_sampled_at`).
 
 References:
     Briot, Arakelian & Le Baron (2012), §1 (shaking forces excite the base's vibrations).
@@ -29,6 +31,7 @@ from jaxbal._src.base_vibration import (
 )
 from jaxbal._src.metrics import _wrench, as_motion
 from jaxbal._src.momentum import total_mass
+from jaxbal._src.sampled_at import check_sampled_at
 from jaxbal._src.types import Scalar
 from jaxbal._src.validation import is_traced
 
@@ -97,6 +100,8 @@ class BaseVibration(eqx.Module):
                 f"the motion has {motion.q.shape[0]} samples but this {self.__name__} metric "
                 f"{len(self.times)} times: sample the motion at its times"
             )
+        if not is_traced(motion):
+            check_sampled_at(motion, self.times, repr(self))
         force, moment = _wrench(robot, motion)
         base = carrying(self.base, total_mass(robot)) if self.carries_robot else self.base
         wrench = jnp.concatenate([force, moment], axis=-1)
