@@ -173,17 +173,18 @@ def test_misplaced_or_malformed_spec_keys_exit_2_naming_the_key(tmp_path, base, 
 
 
 @pytest.mark.slow  # make test-all (make test's 10-minute budget)
-def test_a_failing_runtime_check_prints_one_line_without_jax_traceback(tmp_path, caplog):
+def test_a_switch_time_off_its_domain_is_one_line_before_anything_runs(tmp_path, caplog):
     """jax logged a traceback (``jax.pure_callback failed``) and equinox's banner for
-    the runtime check before the CLI's error line."""
+    the runtime check before the CLI's error line; now the axis is refused up front and
+    no store is left (a block's runtime check: tests/test_sweep_cli_errors.py)."""
     bad_u2 = TRAPEZOID.split("[axes.payload]")[0].replace("samples = 33", "samples = 5")
     bad_u2 = bad_u2.replace('["peak_force", "peak_moment"]', '"peak_force"')
     bad_u2 += "[axes.u2]\nvalues = [0.2, 0.7]\n"
     spec, store = _write(tmp_path, bad_u2), tmp_path / "s.zarr"
     result = CliRunner().invoke(app, ["sweep", str(spec), "--out", str(store), "--no-progress"])
     assert result.exit_code == 2, result.output
-    assert result.output.startswith("error: sweep block 0 (u2 in [0.2, 0.7]")
-    assert "switch times must satisfy" in result.output
+    assert result.output.startswith("error: sweep axis 'u2': u2 = 0.7 is outside its domain")
+    assert len(result.output.strip().splitlines()) == 1 and not store.exists()
     assert not [r for r in caplog.records if r.name.startswith("jax")], caplog.text
 
 

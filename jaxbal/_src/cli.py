@@ -7,6 +7,9 @@ from pathlib import Path
 import numpy as np
 import typer
 
+from jaxbal._src.cli_errors import cannot_write, fail, shorten_arrays
+from jaxbal._src.cli_sweep import plot_command, sweep_command
+
 app = typer.Typer(
     help="jaxbal: dynamic balancing of high-speed robots in JAX.", no_args_is_help=True
 )
@@ -202,7 +205,13 @@ def balance(
     )
     from jaxbal._src.robots.mjcf_export import export_balanced
     from jaxbal._src.robots.mjcf_import import from_mjcf
+    from jaxbal._src.writable import check_writable
 
+    try:
+        if out is not None:  # before the optimisation, not after it
+            check_writable(out)
+    except OSError as error:
+        fail(cannot_write(out, error))
     try:
         objective = _objective(moment_weight, mass_weight)
         bounds = {}
@@ -243,10 +252,12 @@ def balance(
             bare = start_design.with_design({"counter_mass": 0.0 * start_design.counter_mass})
             residuals = [float(vibration(r, motion)) for r in (bare, result.robot)]
         if out is not None:
-            export_balanced(robot, result.robot, out, ignore_meshes=ignore_meshes)
-    except ValueError as error:
-        typer.echo(f"error: {error}", err=True)
-        raise typer.Exit(code=2) from None
+            try:
+                export_balanced(robot, result.robot, out, ignore_meshes=ignore_meshes)
+            except OSError as error:
+                raise ValueError(cannot_write(out, error)) from None
+    except ValueError as error:  # the instants of a move that fails: its ends and count
+        fail(shorten_arrays(str(error)))
     typer.echo(f"{robot.name}: {mechanism.dof} coordinates, move of {duration:g} s")
     typer.echo(f"peak shaking force  {result.unbalanced_peak_force:.6g} N")
     typer.echo(f"peak shaking moment {result.unbalanced_peak_moment:.6g} N·m")
@@ -317,65 +328,8 @@ def _flags(result, k: int) -> str:
     return f"  [!] {', '.join(marks)}" if marks else ""
 
 
-@app.command("sweep")
-def sweep_command(
-    spec: Path = typer.Argument(..., help="the sweep's TOML spec (robot, motion, metric, axes)"),
-    out: Path = typer.Option(..., "--out", help="zarr store written block by block"),
-    resume: bool = typer.Option(False, "--resume", help="continue an interrupted store"),
-    backend: str = typer.Option("local", "--backend", help="local or ray"),
-    address: str = typer.Option(None, "--address", help="Ray cluster address (e.g. auto)"),
-    progress: bool = typer.Option(True, "--progress/--no-progress", help="progress bar"),
-):
-    """Evaluate a metric over the axes of SPEC into the zarr store OUT.
-
-    The spec format is documented in jaxbal/_src/sweep_spec.py (example:
-    experiments/sweeps/dual_v_payload.toml). After an interruption, the same command
-    with --resume computes only the missing blocks. --backend ray sends the blocks to the
-    Ray cluster at --address (default: a new local one).
-    """
-    from jaxbal._src.sweep import sweep
-    from jaxbal._src.sweep_ray import RayBackend
-    from jaxbal._src.sweep_spec import load_spec
-
-    if backend not in ("local", "ray"):
-        typer.echo(f"error: unknown backend {backend!r}; choose one of ['local', 'ray']", err=True)
-        raise typer.Exit(code=2)
-    try:
-        loaded = load_spec(spec)
-        chosen = RayBackend(address=address) if backend == "ray" else "local"
-        dataset = sweep(
-            loaded.metric, loaded.robot, loaded.motion, loaded.axes, trajectory=loaded.trajectory,
-            store=out, resume=resume, backend=chosen, progress=progress,
-            attrs=loaded.description, **loaded.options,
-        )  # fmt: skip
-    except FileExistsError as error:  # the Python call's message names resume=True
-        hint = f"{out} exists: pass --resume to continue it, or remove it"
-        typer.echo(f"error: {error if resume else hint}", err=True)
-        raise typer.Exit(code=2) from None
-    except ValueError as error:
-        typer.echo(f"error: {error}", err=True)
-        raise typer.Exit(code=2) from None
-    sizes = ", ".join(f"{k}={v}" for k, v in dataset.sizes.items())
-    typer.echo(f"{out}: {', '.join(sorted(dataset.data_vars))} over {sizes}")
-
-
-@app.command("plot")
-def plot_command(
-    store: Path = typer.Argument(..., help="a sweep's zarr store"),
-    out: Path = typer.Option(None, "--out", help="PNG to write (default: STORE with .png)"),
-    variable: str = typer.Option(None, "--variable", help="variable (default: the first)"),
-    reduce: str = typer.Option("max", "--reduce", help="max, min or mean over other dims"),
-):
-    """Draw a sweep: a line plot over one axis, a heat map over two."""
-    from jaxbal._src.sweep_plot import plot_sweep
-
-    target = out or store.with_suffix(".png")
-    try:
-        plot_sweep(store, variable, out=target, reduce=reduce)
-    except (ValueError, FileNotFoundError) as error:
-        typer.echo(f"error: {error}", err=True)
-        raise typer.Exit(code=2) from None
-    typer.echo(f"wrote {target}")
+app.command("sweep")(sweep_command)
+app.command("plot")(plot_command)
 
 
 if __name__ == "__main__":

@@ -18,22 +18,31 @@ from pathlib import Path
 import numpy as np
 
 from jaxbal._src.sweep_axes import Axis, Layout, grid
+from jaxbal._src.sweep_blocks import MAX_CHUNK, MAX_LU_BATCH, chunk_points
 from jaxbal._src.sweep_digest import check_resumable, fingerprint, sweep_parts
-from jaxbal._src.sweep_inputs import check_bounds, check_names, check_shapes, trajectory_shapes
-from jaxbal._src.sweep_loops import check_loops
-from jaxbal._src.sweep_program import (
-    bound_cache,
-    build,
-    chunk_memory,
-    device_mesh,
-    release_programs,
-    shape_key,
+from jaxbal._src.sweep_inputs import (
+    check_bounds,
+    check_names,
+    check_shapes,
+    check_trajectory_domain,
+    trajectory_shapes,
 )
-from jaxbal._src.sweep_run import run_backend
-from jaxbal._src.sweep_store import SweepStore, check_labels, discard_unfinished, open_dataset
+from jaxbal._src.sweep_loops import check_loops
+from jaxbal._src.sweep_program import build, device_mesh, release_programs
+from jaxbal._src.sweep_run import connect_backend, run_backend
+from jaxbal._src.sweep_store import (
+    SweepStore,
+    check_labels,
+    check_store,
+    discard_unfinished,
+    open_dataset,
+)
+from jaxbal._src.writable import check_writable
 
 __all__ = [
     "DEFAULT_MEMORY_BUDGET",
+    "MAX_CHUNK",
+    "MAX_LU_BATCH",
     "METRIC_UNITS",
     "Chunks",
     "check_bounds",
@@ -56,8 +65,6 @@ METRIC_UNITS = {
     "added_mass": "kg",
     "added_inertia": "kg·m²",
 }
-#: largest block [points] (keeps the progress bar and the store's chunks moving).
-MAX_CHUNK = 2**18
 #: XLA's CPU backend picks its loop code by array size: measured on the 2R, batches
 #: whose arrays hold fewer than ~2,048 elements (points × samples) can differ from larger
 #: ones in the last bit at some points. A sweep whose device batches hold at least this
@@ -155,48 +162,6 @@ class Chunks:
         return result
 
 
-#: most LU factorisations one device batch may hold. jaxlib's CPU LU (``jnp.linalg.solve``)
-#: splits a large batch over XLA's thread pool and, with two such calls at once on a
-#: 2-core machine, can wait forever (measured: a hang from ~8,000 3×3 systems); below this
-#: it runs inline.
-MAX_LU_BATCH = 4096
-
-
-def _lu_batch(jaxpr) -> int:
-    """Matrices factorised by ``lu`` primitives in ``jaxpr`` and its sub-programs."""
-    total = 0
-    for eqn in jaxpr.eqns:
-        if eqn.primitive.name == "lu":
-            shape = eqn.invars[0].aval.shape
-            total += int(np.prod(shape[:-2], dtype=np.int64))
-        for value in eqn.params.values():
-            for sub in value if isinstance(value, tuple | list) else (value,):
-                inner = getattr(sub, "jaxpr", sub)
-                if hasattr(inner, "eqns"):
-                    total += _lu_batch(inner)
-    return total
-
-
-#: LU factorisations per point by :func:`~jaxbal._src.sweep_program.shape_key`.
-_LU: dict = {}
-
-
-def _chunk_points(program, dynamic, params, budget, total, devices) -> int:
-    per_point, fixed = chunk_memory(program, dynamic, params)
-    per_device = max((budget - fixed) // per_point, 1)
-    import jax
-
-    key = shape_key(program, dynamic, params)
-    if key not in _LU:
-        one = {k: v[0] for k, v in params.items()}
-        _LU[key] = _lu_batch(jax.make_jaxpr(program.point)(dynamic, one).jaxpr)
-        bound_cache(_LU)
-    lu = _LU[key]
-    if lu:
-        per_device = min(per_device, max(MAX_LU_BATCH // lu, 1))
-    return int(min(per_device * devices, total, MAX_CHUNK))
-
-
 def _affine(metric, robot, motion, axes, plan, trajectory, linear):
     """``(robot, function, plan, evaluation)`` of the affine fast path
     (:mod:`jaxbal._src.sweep_affine`), or ``None`` to evaluate the metric directly."""
@@ -243,6 +208,7 @@ def prepare(
     from jaxbal._src.metrics import check_hashable, resolve_metric
     from jaxbal._src.sweep_inputs import check_payload_axis, trajectory_values
 
+    mesh = device_mesh(devices) if mesh else None  # refused: [], duplicates, not devices
     theta = trajectory_values(motion, trajectory)  # refused: θ of a fixed motion, NaN
     axes = _axes(axes)
     function = resolve_metric(metric) if isinstance(metric, str) else metric
@@ -250,16 +216,14 @@ def prepare(
     check_payload_axis(metric, axes)
     plan = plan_parameters(axes, robot, motion)
     check_bounds(axes, robot, plan)
+    check_trajectory_domain(axes, motion, theta)
     check_shapes(axes, robot, plan)
     check_loops(axes, robot, motion, plan)
     evaluation = "direct"
     fast = _affine(metric, robot, motion, axes, plan, trajectory, linear)
     if fast is not None:
         robot, function, plan, evaluation = fast
-    device_list = None if devices is None else list(devices)
-    program, dynamic = build(
-        function, robot, motion, theta, plan, device_mesh(device_list) if mesh else None
-    )
+    program, dynamic = build(function, robot, motion, theta, plan, mesh)
     first = {n: v[:1] for a in axes.values() for n, v in a.values.items()}
     outputs = trajectory_shapes(program, dynamic, first, motion, theta)
     check_names(axes, outputs)
@@ -293,7 +257,8 @@ def _metadata(metric, robot, axes, outputs, units, output_dims, attrs, evaluatio
 
 def _check_sizes(chunk_size, memory_budget, store) -> None:
     """Refuse a ``chunk_size`` that is not an integer ≥ 1, a ``memory_budget`` that is
-    not > 0 bytes, and a ``store`` that is an existing file (a store is a folder)."""
+    not > 0 bytes, a ``store`` that is an existing file (a store is a folder), and a new
+    ``store`` that cannot be written (:func:`~jaxbal._src.writable.check_writable`)."""
     if chunk_size is not None and not (
         isinstance(chunk_size, int | np.integer) and not isinstance(chunk_size, bool)
         and chunk_size >= 1
@@ -306,6 +271,8 @@ def _check_sizes(chunk_size, memory_budget, store) -> None:
             f"{store} is a file, not a jaxbal sweep store (a folder): remove it or choose "
             "another path"
         )
+    if store is not None and not Path(store).exists():
+        check_writable(store)  # before anything compiles
 
 
 def sweep(
@@ -351,6 +318,10 @@ def sweep(
     the plain ``vmap`` of the metric). The dataset's ``evaluation`` attribute says
     ``"affine"`` when the fast path ran.
 
+    ``devices``: a non-empty sequence of distinct :class:`jax.Device` that each block
+    is split over (``shard_map``; default: ``jax.local_devices()``); a Ray worker uses
+    its own local devices.
+
     Raises:
         ValueError: an unknown parameter, values that are not finite, below a design
             variable's lower bound or of a shape that does not fit it, an axis named
@@ -358,13 +329,17 @@ def sweep(
             nobody gives or θ given to a fixed motion (naming it), a closed chain's
             fixed motion off the robot's loops, a store resumed with other inputs, code,
             units or output_dims (naming what changed; it keeps the ``attrs`` it was
-            written with) or that is no sweep store, a runtime check failing in a block
-            (naming its parameter ranges), or a
-            non-finite output (naming the point; ``allow_nonfinite=True`` stores it
-            instead). The blocks finished before stay in the store.
+            written with), a ``store`` folder that is no sweep store (resumed or not),
+            a runtime check failing in a block (``sweep block k (ranges): message``),
+            or a non-finite output (naming the point; ``allow_nonfinite=True`` stores
+            it instead). The blocks finished before stay in the store.
         ValueError: also a ``chunk_size`` that is not an integer ≥ 1, a
-            ``memory_budget`` below 1 byte, or a ``store`` that is a file.
+            ``memory_budget`` below 1 byte, a ``store`` that is a file, bad
+            ``devices``, or a Ray cluster that cannot be reached (before any store).
+        RuntimeError: any other exception raised in a block, as ``sweep block k
+            (ranges): message`` (chained to the original).
         FileExistsError: ``store`` exists and ``resume`` is False.
+        OSError: a new ``store`` that cannot be written (checked first).
     """
     _check_sizes(chunk_size, memory_budget, store)
     axes, program, dynamic, outputs, evaluation = prepare(
@@ -376,6 +351,7 @@ def sweep(
     sizes = tuple(a.size for a in axes.values())
     path = None if store is None else Path(store)
     if path is not None and path.exists() and not discard_unfinished(path, axes, outputs):
+        check_store(path)  # a folder of other files: refused, resumed or not
         if not resume:
             raise FileExistsError(f"{path} exists: pass resume=True to continue it, or remove it")
         opened = SweepStore.open(path)  # also removes a killed write's *.partial files
@@ -384,10 +360,11 @@ def sweep(
     else:
         if chunk_size is None:
             first, _ = Chunks(axes, Layout.for_chunk(sizes, 1), 1).params(0)
-            chunk_size = _chunk_points(
+            chunk_size = chunk_points(
                 program, dynamic, first, memory_budget, math.prod(sizes), count
             )
         layout = Layout.for_chunk(sizes, chunk_size)
+        connect_backend(backend)  # a Ray cluster that is not there: refused, no store left
         opened = SweepStore.create(path, axes, layout, outputs, meta)
     chunks = Chunks(axes, opened.layout, count, allow_nonfinite)
     pending = [k for k, done in enumerate(opened.done()) if not done]

@@ -2,6 +2,8 @@
 ``ValueError`` that names the axis or parameter at fault.
 
 * :func:`check_bounds`: design variables swept below their lower bound;
+* :func:`check_trajectory_domain`: a trapezoid's switch times ``u2``, ``ratio`` (and
+  its ``duration``), swept or fixed, out of their domain;
 * :func:`check_shapes`: a design variable's values, or a ``where=`` leaf's, of a shape
   that does not broadcast to the variable's (e.g. ``(n, 3)`` values of a ``(2,)``
   counter-mass vector);
@@ -28,6 +30,8 @@ __all__ = [
     "check_names",
     "check_payload_axis",
     "check_shapes",
+    "check_trajectory_domain",
+    "in_domain",
     "trajectory_shapes",
     "trajectory_values",
 ]
@@ -52,6 +56,46 @@ def check_bounds(axes: dict, robot, plan) -> None:
                     f"sweep axis {dim!r}: {name} = {worst!r} is below its lower bound "
                     f"{bound.tolist()} ({type(robot).__name__}.design_lower_bounds())"
                 )
+
+
+def in_domain(name: str, values) -> np.ndarray:
+    """Where ``values`` of the trajectory variable ``name`` lie in its domain
+    (:data:`~jaxbal._src.motion_factories.THETA_DOMAIN`, e.g. ``0 < ratio ≤ 1``)."""
+    from jaxbal._src.motion_factories import THETA_DOMAIN
+
+    least, most, closed = THETA_DOMAIN[name]
+    values = np.asarray(values, dtype=float)
+    return (values > least) & ((values <= most) if closed else (values < most))
+
+
+def check_trajectory_domain(axes: dict, motion, theta: dict) -> None:
+    """Refuse, before anything compiles or a store is created, switch times of a
+    trapezoid factory (:class:`~jaxbal.design.TrapezoidLine`, ``ComTrapezoid``) swept
+    or fixed out of their domain (``0 < u2 < 1/2``, ``0 < ratio ≤ 1``, ``duration >
+    0``): the factory's runtime check failed in the first block, after an empty store
+    was written.
+
+    Raises:
+        ValueError: naming the axis (or ``trajectory=``), the variable and the value.
+    """
+    from jaxbal._src.motion_factories import THETA_DOMAIN, ComTrapezoid, TrapezoidLine
+
+    if not isinstance(motion, TrapezoidLine | ComTrapezoid):
+        return
+    given = [(f"sweep axis {dim!r}", name, values) for dim, axis in axes.items()
+             for name, values in axis.values.items()]  # fmt: skip
+    given += [("trajectory=", name, values) for name, values in theta.items()]
+    for where, name, values in given:
+        if name not in THETA_DOMAIN:
+            continue
+        outside = ~in_domain(name, values)
+        if outside.any():
+            least, most, closed = THETA_DOMAIN[name]
+            raise ValueError(
+                f"{where}: {name} = {np.asarray(values)[outside].ravel()[0]:g} is outside its "
+                f"domain {least:g} < {name} {'≤' if closed else '<'} {most:g} (the switch "
+                "times of the trapezoid, 0 < u1 = ratio·u2 ≤ u2 < 1/2)"
+            )
 
 
 def check_shapes(axes: dict, robot, plan) -> None:

@@ -1,13 +1,22 @@
 """Plots of a sweep: a line plot over one axis, a heat map over two, drawn in the order
-of the axes' values (a grid may list them in any order)."""
+of the axes' values (a grid may list them in any order). A sweep whose blocks are not
+all done is drawn with what is done, its title saying how many are, and an
+:class:`IncompleteSweepWarning`; the image's format is its file's suffix."""
 
 from __future__ import annotations
 
+import io
+import warnings
 from pathlib import Path
 
 import numpy as np
 
-__all__ = ["plot_sweep"]
+__all__ = ["IncompleteSweepWarning", "plot_sweep"]
+
+
+class IncompleteSweepWarning(UserWarning):
+    """A sweep plotted before all its blocks are done (the others are blank)."""
+
 
 _REDUCERS = {"max": np.nanmax, "min": np.nanmin, "mean": np.nanmean}
 
@@ -34,20 +43,24 @@ def plot_sweep(source, variable: str | None = None, *, out=None, reduce: str = "
     Args:
         source: a sweep :class:`xarray.Dataset` or the path of its zarr store.
         variable: the variable (default: the first one).
-        out: write the figure there as PNG (atomically) and close it.
+        out: write the figure there (atomically) in the format of its suffix (``.png``,
+            ``.pdf``, ``.svg``, …; none: PNG) and close it.
         reduce: ``"max"``, ``"min"`` or ``"mean"`` over the dimensions not drawn.
 
     Returns:
         The matplotlib figure (``None`` when written to ``out``).
 
     Raises:
-        ValueError: an unknown variable or reduction.
+        ValueError: an unknown variable or reduction, or a suffix of ``out`` that
+            matplotlib cannot write (checked first).
     """
     import matplotlib
 
     if out is not None:
         matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
+    image = None if out is None else _format(out)
 
     from jaxbal._src.sweep_store import open_dataset
 
@@ -80,10 +93,40 @@ def plot_sweep(source, variable: str | None = None, *, out=None, reduce: str = "
     if keep == 1:
         ax.set_xlabel(_label(dataset, x))
         ax.grid(alpha=0.3)
+    done, _, count = str(dataset.attrs.get("blocks_done", "")).partition("/")
+    if count and done != count:
+        note += f"\n{done} of {count} blocks done"
+        warnings.warn(
+            f"{done} of {count} blocks of the sweep are done: the plot shows those only "
+            "(resume the sweep for the others)",
+            IncompleteSweepWarning,
+            stacklevel=2,
+        )
     ax.set_title(f"{variable}{note}", fontsize=10)
     if out is None:
         return fig
-    from jaxbal._src.report import save_figure
+    from jaxbal._src.report import atomic_write_bytes
 
-    save_figure(fig, Path(out))
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format=image, dpi=130, bbox_inches="tight")
+    plt.close(fig)
+    atomic_write_bytes(Path(out), buffer.getvalue())
     return None
+
+
+def _format(out) -> str:
+    """The image format of the file ``out``: its suffix (PNG without one).
+
+    Raises:
+        ValueError: a suffix matplotlib cannot write, naming those it can.
+    """
+    from matplotlib.backend_bases import FigureCanvasBase
+
+    suffix = Path(out).suffix.lstrip(".").lower() or "png"
+    known = FigureCanvasBase.get_supported_filetypes()
+    if suffix not in known:
+        raise ValueError(
+            f"cannot write {out}: matplotlib writes no {suffix!r} images; use one of the "
+            f"suffixes {sorted(known)}"
+        )
+    return suffix

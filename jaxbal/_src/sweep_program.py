@@ -42,9 +42,27 @@ AXIS = "points"
 
 
 def device_mesh(devices=None) -> Mesh:
-    """A one-dimensional mesh over ``devices`` (default: all local devices)."""
-    devices = jax.local_devices() if devices is None else list(devices)
-    return Mesh(np.array(devices), (AXIS,))
+    """A one-dimensional mesh over ``devices`` (default: all local devices).
+
+    Raises:
+        ValueError: ``devices`` is not a non-empty sequence of distinct
+            :class:`jax.Device` (``[]`` divided by zero, a duplicate failed inside JAX,
+            ``"cpu"`` with an ``AttributeError``).
+    """
+    if devices is None:
+        return Mesh(np.array(jax.local_devices()), (AXIS,))
+    try:
+        given = [] if isinstance(devices, str | bytes) else list(devices)
+    except TypeError:  # not a sequence
+        given = []
+    if not (given and all(isinstance(d, jax.Device) for d in given)):
+        raise ValueError(
+            "devices must be a non-empty sequence of distinct jax devices (e.g. "
+            f"jax.local_devices()[:2]), got {devices!r}"
+        )
+    if len(set(given)) != len(given):
+        raise ValueError(f"devices lists a device more than once: {given}")
+    return Mesh(np.array(given), (AXIS,))
 
 
 def _split(tree) -> tuple[list, tuple]:

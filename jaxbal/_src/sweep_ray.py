@@ -26,7 +26,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["RayBackend", "evaluate_ray"]
+__all__ = ["CONNECT_TIMEOUT", "RayBackend", "connect", "evaluate_ray"]
+
+#: seconds to wait for a TCP connection to an explicit ``host:port`` address before
+#: ``ray.init``, which retries for minutes where nothing listens.
+CONNECT_TIMEOUT = 10.0
 
 #: programs a worker has compiled, by sweep token (so a block never recompiles).
 _PROGRAMS: dict[str, tuple] = {}
@@ -55,14 +59,45 @@ class RayBackend:
     init: dict = field(default_factory=dict)
 
 
-def _connect(backend: RayBackend):
+def connect(backend: RayBackend):
+    """The ``ray`` module, connected to the backend's cluster (a new local one when
+    ``address`` is ``None`` and this process is not connected yet).
+
+    Raises:
+        ValueError: nothing listens at an explicit ``host:port`` address (checked with
+            a TCP connection within :data:`CONNECT_TIMEOUT`), or ``ray.init`` fails
+            (``address="auto"`` with no cluster running), in one line naming the address.
+    """
     try:
         import ray
     except ImportError:  # pragma: no cover - depends on the installed extras
         raise ImportError('the Ray backend needs Ray: pip install "jaxbal[cluster]"') from None
-    if not ray.is_initialized():
-        ray.init(address=backend.address, **backend.init)
+    if ray.is_initialized():
+        return ray
+    address = backend.address
+    try:
+        _probe(address)
+        ray.init(address=address, **backend.init)
+    except (ConnectionError, OSError, RuntimeError) as error:  # ray's, and the probe's
+        reason = str(error).strip().splitlines()[0] if str(error).strip() else repr(error)
+        raise ValueError(f"cannot connect to the Ray cluster at {address!r}: {reason}") from None
     return ray
+
+
+def _probe(address) -> None:
+    """Raise ``ConnectionError`` if nothing accepts a TCP connection at an explicit
+    ``[ray://]host:port`` address (``None`` and ``"auto"`` are left to Ray)."""
+    import socket
+
+    if not isinstance(address, str) or address in ("auto", "local"):
+        return
+    host, _, port = address.removeprefix("ray://").rpartition(":")
+    if not (host and port.isdigit()):
+        return
+    try:
+        socket.create_connection((host.strip("[]"), int(port)), CONNECT_TIMEOUT).close()
+    except OSError as error:
+        raise ConnectionError(f"nothing listens at {host}:{port} ({error})") from None
 
 
 def _worker_program(token: str, payload):
@@ -101,7 +136,7 @@ def evaluate_ray(
     A runtime check failing in a block raises the ``ValueError`` of the local backend."""
     from jaxbal._src.sweep_run import block_error
 
-    ray = _connect(backend)
+    ray = connect(backend)
     remote = ray.remote(evaluate_block).options(
         max_retries=backend.max_retries,
         retry_exceptions=False,
@@ -126,9 +161,26 @@ def evaluate_ray(
                 try:
                     outputs = ray.get(ref)
                 except Exception as error:  # noqa: BLE001 - re-raised with the block named
+                    _write_finished(ray, running, chunks, write, advance)
                     raise block_error(chunks, k, error) from error
                 write(k, chunks.unpad(k, outputs, m))
                 advance(m)
     finally:
         for ref in running:
             ray.cancel(ref, force=True)
+
+
+def _write_finished(ray, running: dict, chunks, write, advance) -> None:
+    """Write the blocks of ``running`` whose tasks have finished without error (a block
+    failed: these would be lost with the cancelled ones)."""
+    if not running:
+        return
+    ready, _ = ray.wait(list(running), num_returns=len(running), timeout=0)
+    for ref in ready:
+        k, m = running.pop(ref)
+        try:
+            outputs = chunks.unpad(k, ray.get(ref), m)
+        except Exception:  # noqa: BLE001 - failed too: the first failure is reported
+            continue
+        write(k, outputs)
+        advance(m)

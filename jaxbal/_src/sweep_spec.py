@@ -40,7 +40,8 @@ An axis's parameters are design variables of the robot (``robot.design()``) or, 
 :class:`jaxbal.design.TrapezoidLine`. Relative paths are relative to the spec file.
 A key of the other motion kind (``profile`` with a trapezoid, ``u2`` with an
 end-effector line) is refused. Every error is a :class:`ValueError` naming the offending
-key.
+key (values are read by :mod:`jaxbal._src.sweep_spec_values`: a TOML boolean is no
+number; a pose must have as many coordinates as the robot's end-effector pose).
 """
 
 from __future__ import annotations
@@ -50,6 +51,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from jaxbal._src.sweep_spec_values import (
+    branch_signs,
+    check_options,
+    has_boolean,
+    integer,
+    is_number,
+    number,
+    numbers,
+    refuse,
+)
+from jaxbal._src.sweep_spec_values import table as as_table
 
 __all__ = ["SweepSpec", "load_spec"]
 
@@ -89,11 +102,6 @@ def _unknown(table: dict, allowed, where: str) -> None:
         raise ValueError(f"unknown key(s) {extra} in {where}; allowed: {sorted(allowed)}")
 
 
-def _is_number(value) -> bool:
-    """A TOML integer or float (not a boolean)."""
-    return isinstance(value, int | float) and not isinstance(value, bool)
-
-
 def _need(table: dict, key: str, where: str):
     if key not in table:
         raise ValueError(f"{where} needs {key!r}")
@@ -109,7 +117,8 @@ def _robot(table: dict, folder: Path):
         {"name", "mjcf", "options", "end_effector_site", "actuated", "independent", "payload_body"},
         "[robot]",
     )
-    options = dict(table.get("options", {}))
+    options = dict(as_table(table.get("options", {}), "[robot] options", "a table of keyword "
+                            "arguments of the constructor ([robot.options])"))  # fmt: skip
     if ("name" in table) == ("mjcf" in table):
         raise ValueError("[robot] needs exactly one of 'name' (built-in) or 'mjcf' (a file)")
     if "mjcf" in table:
@@ -118,25 +127,50 @@ def _robot(table: dict, folder: Path):
             raise ValueError(f"[robot] mjcf = {table['mjcf']!r}: no such file ({path})")
         keys = ("end_effector_site", "actuated", "independent", "payload_body")
         kwargs = {k: table[k] for k in keys if k in table}
-        return from_mjcf(path, **kwargs, **options)
+        check_options(from_mjcf, options)
+        try:
+            return from_mjcf(path, **kwargs, **options)
+        except TypeError as error:
+            raise ValueError(f"[robot] {error}") from None
     name = str(table["name"]).strip().lower()
     key = ALIASES.get(name, name)
     if key not in ROBOTS:
         raise ValueError(f"[robot] name = {table['name']!r} is unknown; choose one of "
                          f"{sorted(ROBOTS)}")  # fmt: skip
+    check_options(ROBOTS[key], options)
     try:
         return ROBOTS[key](**options)
     except TypeError as error:
         raise ValueError(f"[robot.options] {options} not accepted by {key}(): {error}") from None
+    except ValueError as error:  # e.g. a negative payload, refused by the robot
+        raise ValueError(f"[robot.options] {error}") from None
 
 
-def _pose(table: dict, key: str):
+def _pose_size(robot) -> int | None:
+    """Coordinates of the robot's end-effector pose (``None`` if it cannot say)."""
+    import jax
     import jax.numpy as jnp
 
-    value = np.asarray(_need(table, key, "[motion]"), dtype=float)
-    if value.ndim != 1 or not np.all(np.isfinite(value)):
-        raise ValueError(f"[motion] {key} must be a list of finite numbers, got {table[key]!r}")
-    return jnp.asarray(value)
+    try:
+        q = jax.ShapeDtypeStruct((robot.dof,), jnp.float64)
+        shape = jax.eval_shape(robot.end_effector, q).shape
+    except Exception:  # noqa: BLE001 - no end effector: the IK reports it
+        return None
+    return shape[0] if len(shape) == 1 else None
+
+
+def _pose(robot, table: dict, key: str):
+    import jax.numpy as jnp
+
+    size, what = _pose_size(robot), "a list of finite numbers"
+    if size is not None:
+        try:  # an MJCF robot names its pose's components
+            named = f": {', '.join(robot.pose_labels())}"
+        except (AttributeError, ValueError):
+            named = ""
+        what += f", the {size} coordinates of the end-effector pose of {type(robot).__name__}"
+        what += named
+    return jnp.asarray(numbers(_need(table, key, "[motion]"), f"[motion] {key}", what, size))
 
 
 def _motion(robot, table: dict):
@@ -155,16 +189,13 @@ def _motion(robot, table: dict):
     misplaced = sorted(set(table) - _MOTION_KEYS[kind])
     if misplaced:
         raise ValueError(f"[motion] key(s) {misplaced} do not apply to kind = {kind!r}")
-    start, end = _pose(table, "start"), _pose(table, "end")
-    duration = float(_need(table, "duration", "[motion]"))
-    if not (np.isfinite(duration) and duration > 0):
-        raise ValueError(f"[motion] duration must be > 0 s, got {duration!r}")
+    start, end = _pose(robot, table, "start"), _pose(robot, table, "end")
+    duration = _need(table, "duration", "[motion]")
+    duration = number(duration, "[motion] duration", "> 0 s (a number)", lambda v: v > 0)
     samples = table.get("samples", 101)
-    if not isinstance(samples, int) or samples < 2:
-        raise ValueError(f"[motion] samples must be an integer ≥ 2, got {samples!r}")
+    samples = integer(samples, "[motion] samples", "an integer ≥ 2", lambda v: v >= 2)
     times = sample_times(duration, samples)
-    branch = table.get("branch")
-    branch = tuple(int(b) for b in branch) if isinstance(branch, list) else branch
+    branch = branch_signs(table.get("branch"), "[motion] branch")
     if kind == "trapezoid":
         theta = {"u2": _switch(table, "u2", 0.25), "ratio": _switch(table, "ratio", 1.0)}
         path = {} if branch is None else {"path": _BranchPath(branch)}
@@ -179,13 +210,14 @@ def _motion(robot, table: dict):
 
 def _switch(table: dict, key: str, default: float) -> float:
     """Switch-time variable ``u2`` (``0 < u2 < 1/2``) or ``ratio = u1/u2`` (``0 < ratio
-    ≤ 1``) of a trapezoid (:class:`jaxbal.profiles.TrapezoidalAcceleration`)."""
-    value = table.get(key, default)
-    high, closed = (0.5, False) if key == "u2" else (1.0, True)
-    if not (_is_number(value) and 0 < value and (value <= high if closed else value < high)):
-        bound = f"≤ {high}" if closed else f"< {high}"
-        raise ValueError(f"[motion] {key} must be a number > 0 and {bound}, got {value!r}")
-    return float(value)
+    ≤ 1``) of a trapezoid (:data:`~jaxbal._src.motion_factories.THETA_DOMAIN`)."""
+    from jaxbal._src.motion_factories import THETA_DOMAIN
+    from jaxbal._src.sweep_inputs import in_domain
+
+    least, most, closed = THETA_DOMAIN[key]
+    what = f"a number > {least:g} and {'≤' if closed else '<'} {most:g}"
+    valid = lambda v: bool(in_domain(key, v))  # noqa: E731
+    return number(table.get(key, default), f"[motion] {key}", what, valid)
 
 
 @dataclass(frozen=True)
@@ -218,8 +250,10 @@ def _axis(name: str, table: dict):
         if not isinstance(units, dict):
             raise ValueError(f"{where} units must be a table {{parameter = unit}}, got {units!r}")
         build = getattr(sweep_axes, kind)
+        n = _need(table, "n", where)  # refused by the sample, naming the count
+        seed = integer(table.get("seed", 0), f"{where} seed", "an integer ≥ 0", lambda v: v >= 0)
         try:
-            return build(_need(table, "n", where), bounds, seed=table.get("seed", 0), units=units)
+            return build(n, bounds, seed=seed, units=units)
         except ValueError as error:
             raise ValueError(f"{where} {error}") from None
     _unknown(table, {"values", "linspace", "units"}, where)
@@ -228,7 +262,7 @@ def _axis(name: str, table: dict):
     if "linspace" in table:
         spec = table["linspace"]
         if not (
-            isinstance(spec, list) and len(spec) == 3 and all(_is_number(v) for v in spec)
+            isinstance(spec, list) and len(spec) == 3 and all(is_number(v) for v in spec)
             and np.all(np.isfinite(spec)) and spec[2] == int(spec[2])
             and 1 <= spec[2] <= sweep_axes.MAX_POINTS
         ):  # fmt: skip
@@ -239,6 +273,8 @@ def _axis(name: str, table: dict):
         values = np.linspace(float(spec[0]), float(spec[1]), int(spec[2]))
     else:
         values = table["values"]
+        if has_boolean(values):  # NumPy reads true as 1.0
+            refuse(f"{where} values", "numbers, not booleans", values)
     units = table.get("units", "")
     if not isinstance(units, str):
         raise ValueError(f"{where} units must be a string, got {units!r}")
@@ -312,9 +348,13 @@ def load_spec(path) -> SweepSpec:
         table = tomllib.loads(path.read_text())
     except tomllib.TOMLDecodeError as error:
         raise ValueError(f"{path} is not valid TOML: {error}") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise ValueError(f"cannot read {path}: {getattr(error, 'strerror', error)}") from None
     _unknown(table, _TOP, path.name)
-    robot = _robot(_need(table, "robot", path.name), path.parent)
-    motion, theta = _motion(robot, _need(table, "motion", path.name))
+    robot = _robot(as_table(_need(table, "robot", path.name), "robot", "a table [robot]"),
+                   path.parent)  # fmt: skip
+    motion, theta = _motion(robot, as_table(_need(table, "motion", path.name), "motion",
+                                            "a table [motion]"))  # fmt: skip
     axes_table = _need(table, "axes", path.name)
     if not isinstance(axes_table, dict) or not axes_table:
         raise ValueError(f"{path.name} needs at least one [axes.NAME] table")
@@ -328,15 +368,12 @@ def load_spec(path) -> SweepSpec:
             raise ValueError(f'{path.name}: linear must be true, false or "auto", got {linear!r}')
         options["linear"] = linear
     if "memory_budget_mib" in table:
-        budget = table["memory_budget_mib"]
-        if not (_is_number(budget) and np.isfinite(budget) and budget > 0):
-            raise ValueError(f"{path.name}: memory_budget_mib must be a number > 0, got {budget!r}")
+        key = f"{path.name}: memory_budget_mib"
+        budget = number(table["memory_budget_mib"], key, "a number > 0", lambda v: v > 0)
         options["memory_budget"] = max(int(budget * 2**20), 1)
     if "chunk_size" in table:
-        chunk = table["chunk_size"]
-        if not (_is_number(chunk) and isinstance(chunk, int) and chunk >= 1):
-            raise ValueError(f"{path.name}: chunk_size must be an integer ≥ 1, got {chunk!r}")
-        options["chunk_size"] = chunk
+        key, chunk = f"{path.name}: chunk_size", table["chunk_size"]
+        options["chunk_size"] = integer(chunk, key, "an integer ≥ 1", lambda v: v >= 1)
     if units:
         options["units"] = units
     description = {"spec": path.name, "robot_spec": str(table["robot"])}

@@ -41,7 +41,7 @@ import numpy as np
 
 from jaxbal._src.sweep_axes import Axis, Layout
 
-__all__ = ["MANIFEST", "SweepStore", "check_labels", "open_dataset"]
+__all__ = ["MANIFEST", "SweepStore", "check_labels", "check_store", "open_dataset"]
 
 #: the group of the store's own records (``done``)
 MANIFEST = "_jaxbal"
@@ -240,26 +240,42 @@ def describe(group) -> dict:
     if not isinstance(description, dict) or description.get("format") != _FORMAT:
         raise ValueError(
             "not a jaxbal sweep store (no jaxbal_sweep attribute: not written by "
-            "jaxbal.sweep, or by another version of it): remove it or choose another path"
+            "jaxbal.sweep, or by another version of it)"
         )
     return description
 
 
-def _open_group(path, mode: str):
+def check_store(path) -> None:
+    """Refuse the existing folder ``path`` as a sweep's store unless it is one: said
+    before ``resume`` is advised (a folder of other files, or an empty one, was told
+    "exists: pass resume", then "not a jaxbal sweep store"). Nothing in it is touched.
+
+    Raises:
+        ValueError: naming the path and what it holds instead.
+    """
+    group = _open_group(path, "r", advice=": choose another path")
+    try:
+        describe(group)
+    except ValueError as error:
+        raise ValueError(f"{path} is {error}: remove it or choose another path") from None
+
+
+def _open_group(path, mode: str, advice: str = ""):
     """The zarr group at ``path``; a folder without one (empty, or not zarr) is refused.
 
     Raises:
-        ValueError: naming the path (zarr's own message says "No group found in store").
+        ValueError: naming the path (zarr's own message says "No group found in store"),
+            followed by ``advice``.
     """
     import zarr
 
     try:
         return zarr.open_group(str(path), mode=mode, zarr_format=3)
     except zarr.errors.NodeNotFoundError:
-        raise ValueError(
-            f"{path} is not a jaxbal sweep store (no zarr group in it): remove it or choose "
-            "another path"
-        ) from None
+        held = sum(1 for _ in Path(path).iterdir()) if Path(path).is_dir() else 0
+        what = f"a folder of {held} other item(s)" if held else "an empty folder"
+        raise ValueError(f"{path} is not a jaxbal sweep store (no zarr group in it), {what}"
+                         f"{advice}") from None  # fmt: skip
 
 
 def check_labels(path, group, axes: dict, outputs: dict, meta: dict) -> None:
@@ -330,7 +346,12 @@ def open_dataset(source, *, complete: bool = True):
         if not Path(source).exists():
             raise FileNotFoundError(f"no sweep store at {source}")
         group = _open_group(source, "r")
-    description = describe(group)
+    try:
+        description = describe(group)
+    except ValueError as error:
+        if group is source:
+            raise
+        raise ValueError(f"{source} is {error}") from None
     done = np.asarray(group[MANIFEST]["done"][:]).astype(bool)
     if complete and not done.all():
         missing = int((~done).sum())
