@@ -11,7 +11,7 @@ INSTALL = $(BIN)/python -m pip install --quiet uv && $(BIN)/uv pip install --qui
 	--python $(BIN)/python -e ".[$(1)]" || ($(BIN)/python -m pip install --quiet --upgrade pip \
 	&& $(BIN)/python -m pip install --quiet --no-compile -e ".[$(1)]")
 
-.PHONY: install test test-all lint reproduce bench fuzz clean
+.PHONY: install test test-all lint reproduce bench bench-quick fuzz clean
 
 $(TEST_STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV) || python3 -m venv $(VENV)
@@ -46,6 +46,11 @@ reproduce: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/run.py --out benchmarks/results
+
+# smoke run of every section at small sizes (10 min on the busy 2-core CPU: compilation);
+# writes to a temporary folder, never benchmarks/results nor the README
+bench-quick: $(STAMP)
+	$(BIN)/python benchmarks/run.py --quick
 
 clean:
 	rm -rf $(VENV) results .pytest_cache

@@ -22,10 +22,15 @@ The times with compilation are also measured each in a fresh process with an emp
 compilation cache (``python codesign_bench.py PROBLEM jaxbal|scipy``; the median of
 three such processes), so that neither
 method profits from what the other compiled or traced first in the same process.
+
+Usage: ``python benchmarks/codesign_bench.py all [--repeats N] [--fresh-runs N]`` (the
+whole section, one JSON line, as run.py runs it) or ``python benchmarks/codesign_bench.py
+PROBLEM METHOD`` (one first co-design, ``{"seconds": …}``); ``--help`` for more.
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import json
 import os
@@ -38,6 +43,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
+from arguments import count, positive_int
 from cases import robot_and_motion
 from scipy.optimize import minimize as scipy_minimize
 
@@ -174,7 +180,7 @@ def _relative(a, b) -> float:
 REPEATS = 5
 
 
-def bench_problem(robot, motion, free) -> dict:
+def bench_problem(robot, motion, free, repeats: int = REPEATS) -> dict:
     design = robot.design()
     start_a = {n: np.asarray(design[n], dtype=float) * 0.5 + 0.5 for n in free}
     start_b = {n: np.asarray(design[n], dtype=float) * 0.7 + 0.3 for n in free}
@@ -182,9 +188,9 @@ def bench_problem(robot, motion, free) -> dict:
     x_j1, t_j1, _ = run_jaxbal(objective, robot, motion, free, start_a)
     value = scipy_objective(objective, robot, motion, free)
     x_s1, t_s1, evals_1 = run_scipy(value, start_a, free, 1e-16)
-    # compiled: the median of REPEATS runs from the second start, alternating methods
+    # compiled: the median of `repeats` runs from the second start, alternating methods
     jaxbal_runs, scipy_runs = [], []
-    for _ in range(REPEATS):
+    for _ in range(repeats):
         jaxbal_runs.append(run_jaxbal(objective, robot, motion, free, start_b))
         scipy_runs.append(run_scipy(value, start_b, free, 1e-16))
     x_j2, _, solution = jaxbal_runs[-1]
@@ -220,13 +226,13 @@ def bench_problem(robot, motion, free) -> dict:
 FRESH_RUNS = 3
 
 
-def first_run(name: str, method: str) -> float:
+def first_run(name: str, method: str, runs: int = FRESH_RUNS) -> float:
     """Median seconds of the first co-design of problem ``name`` by ``method``, each in
     a fresh process with an empty compilation cache (imports and the motion excluded),
-    over :data:`FRESH_RUNS` processes."""
+    over ``runs`` processes."""
     here = Path(__file__).resolve().parent
     seconds = []
-    for _ in range(FRESH_RUNS):
+    for _ in range(runs):
         with tempfile.TemporaryDirectory() as cache:
             env = dict(os.environ, JAXBAL_CACHE_DIR=cache, PYTHONPATH=str(here))
             env.pop("XLA_FLAGS", None)
@@ -236,18 +242,23 @@ def first_run(name: str, method: str) -> float:
     return float(np.median(seconds))
 
 
-def bench_all() -> dict:
+def bench_all(repeats: int = REPEATS, fresh_runs: int = FRESH_RUNS) -> dict:
+    """Every problem of :data:`PROBLEMS`; with ``fresh_runs=0`` no fresh process (the
+    ``fresh_process…`` entries are then left out)."""
     results = {}
     for name, problem in problems().items():
-        result = bench_problem(*problem)
-        fresh = {method: first_run(name, method) for method in ("jaxbal", "scipy")}
-        result["fresh_process_seconds_with_compile"] = fresh
-        result["speedup_with_compile_fresh_processes"] = fresh["scipy"] / fresh["jaxbal"]
+        result = bench_problem(*problem, repeats=repeats)
+        if fresh_runs:
+            fresh = {method: first_run(name, method, fresh_runs) for method in METHODS}
+            result["fresh_process_seconds_with_compile"] = fresh
+            result["speedup_with_compile_fresh_processes"] = fresh["scipy"] / fresh["jaxbal"]
         results[name] = result
     return results
 
 
-def _main(name: str, method: str) -> None:
+def first_codesign(name: str, method: str) -> None:
+    """Print ``{"seconds": …}``: the first co-design of problem ``name`` by ``method``
+    in this process (what :func:`first_run` runs in each fresh process)."""
     robot, motion, free = PROBLEMS[name]()
     design = robot.design()
     start = {n: np.asarray(design[n], dtype=float) * 0.5 + 0.5 for n in free}
@@ -262,8 +273,63 @@ def _main(name: str, method: str) -> None:
     print(json.dumps({"seconds": seconds}))
 
 
-if __name__ == "__main__":
-    if sys.argv[1:] == ["all"]:  # the whole section, as benchmarks/run.py runs it
-        print(json.dumps(bench_all()))
+#: the two co-design methods compared
+METHODS = ("jaxbal", "scipy")
+
+
+def parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="codesign_bench.py",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "problem",
+        choices=("all", *PROBLEMS),
+        metavar="PROBLEM",
+        help="'all': the whole section (every problem, both methods, fresh processes), "
+        "as benchmarks/run.py runs it; or one problem, timed once by METHOD: "
+        f"{', '.join(PROBLEMS)}",
+    )
+    parser.add_argument(
+        "method",
+        nargs="?",
+        choices=METHODS,
+        metavar="METHOD",
+        help=f"with one PROBLEM (required then): {' or '.join(METHODS)}",
+    )
+    parser.add_argument(
+        "--repeats",
+        type=positive_int,
+        default=REPEATS,
+        metavar="N",
+        help="with 'all': compiled runs of each method per problem, their median time "
+        "reported (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--fresh-runs",
+        type=count,
+        default=FRESH_RUNS,
+        metavar="N",
+        help="with 'all': fresh processes per problem and method timing the first "
+        "co-design, their median reported; 0 leaves the fresh-process times out "
+        "(default: %(default)s)",
+    )
+    return parser
+
+
+def main(argv: list[str] | None = None) -> None:
+    cli = parser()
+    args = cli.parse_args(argv)
+    if args.problem == "all":
+        if args.method is not None:
+            cli.error(f"PROBLEM 'all' runs both methods: drop METHOD {args.method!r}")
+        print(json.dumps(bench_all(args.repeats, args.fresh_runs)))
+    elif args.method is None:
+        cli.error(f"PROBLEM {args.problem!r} needs a METHOD: {' or '.join(METHODS)}")
     else:
-        _main(*sys.argv[1:3])
+        first_codesign(args.problem, args.method)
+
+
+if __name__ == "__main__":
+    main()

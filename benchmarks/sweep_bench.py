@@ -46,6 +46,7 @@ import time  # noqa: E402
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
+from arguments import positive_float, positive_int  # noqa: E402
 from readme_block import SWEEP_LOOPS, TARGETS  # noqa: E402
 
 import jaxbal  # noqa: E402
@@ -288,10 +289,34 @@ def bench(n_designs: int, budget: int, repeats: int = 3, seed: int = 0) -> dict:
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__)
-    parser.add_argument("--designs", type=int, default=500)
-    parser.add_argument("--budget-mib", type=float, default=64.0)
-    parser.add_argument("--repeats", type=int, default=3)
+    parser = argparse.ArgumentParser(
+        prog="sweep_bench.py",
+        description=__doc__,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--designs",
+        type=positive_int,
+        default=500,
+        metavar="N",
+        help="random counter-mass designs swept, each over 20 payloads × 1,000 samples "
+        "(default: %(default)s)",
+    )
+    parser.add_argument(
+        "--budget-mib",
+        type=positive_float,
+        default=64.0,
+        metavar="MIB",
+        help="memory budget of the sweeps that are cut into blocks [MiB] (default: %(default)s)",
+    )
+    parser.add_argument(
+        "--repeats",
+        type=positive_int,
+        default=3,
+        metavar="N",
+        help="interleaved rounds of warm calls; the best time of each case is reported "
+        "(default: %(default)s)",
+    )
     args = parser.parse_args()
     result = bench(args.designs, int(args.budget_mib * MIB), args.repeats)
     print(json.dumps(result))
