@@ -11,26 +11,31 @@ import argparse
 ROBOTS = ("planar_2r", "planar_3r", "scara", "dual_v", "orthoglide")
 
 
-def positive_int(text: str) -> int:
-    """An ``argparse`` type: an integer ≥ 1 (``1_000_000`` is accepted)."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, got {value}")
-    return value
+def command_line(prog: str, doc: str) -> argparse.ArgumentParser:
+    """A script's parser: its name, and its module docstring as the description."""
+    return argparse.ArgumentParser(
+        prog=prog, description=doc, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
 
 
-def count(text: str) -> int:
-    """An ``argparse`` type: an integer ≥ 0."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be at least 0, got {value}")
-    return value
+def _integer_at_least(least: int):
+    """An ``argparse`` type: an integer ≥ ``least`` (``1_000_000`` is accepted)."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+        if value < least:
+            raise argparse.ArgumentTypeError(f"must be at least {least}, got {value}")
+        return value
+
+    parse.__name__ = f"integer >= {least}"  # argparse names the type in its errors
+    return parse
+
+
+#: ``argparse`` types: an integer ≥ 1, an integer ≥ 0
+positive_int, count = _integer_at_least(1), _integer_at_least(0)
 
 
 def positive_float(text: str) -> float:

@@ -43,7 +43,7 @@ from pathlib import Path
 import jax
 import jax.numpy as jnp
 import numpy as np
-from arguments import count, positive_int
+from arguments import command_line, count, positive_int
 from cases import robot_and_motion
 from scipy.optimize import minimize as scipy_minimize
 
@@ -278,11 +278,7 @@ METHODS = ("jaxbal", "scipy")
 
 
 def parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="codesign_bench.py",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = command_line("codesign_bench.py", __doc__)
     parser.add_argument(
         "problem",
         choices=("all", *PROBLEMS),

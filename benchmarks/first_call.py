@@ -16,17 +16,13 @@ import argparse
 import json
 import time
 
-from arguments import ROBOTS
+from arguments import ROBOTS, command_line
 
 
 def parser() -> argparse.ArgumentParser:
     """The command line (parsed before JAX is imported: ``--help`` and errors are fast
     and the import is timed alone)."""
-    parser = argparse.ArgumentParser(
-        prog="first_call.py",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = command_line("first_call.py", __doc__)
     parser.add_argument(
         "robot",
         choices=ROBOTS,

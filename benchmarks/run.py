@@ -57,7 +57,7 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import wrench_bench  # noqa: E402
-from arguments import ROBOTS, count, positive_float, positive_int  # noqa: E402
+from arguments import ROBOTS, command_line, count, positive_float, positive_int  # noqa: E402
 from readme_block import TARGETS, update_readme  # noqa: E402
 
 #: the stored results of full runs (never written by ``--quick``)
@@ -242,11 +242,7 @@ def merge_section(args, path: Path) -> dict:
 
 
 def parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="run.py",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = command_line("run.py", __doc__)
 
     def sized(option: str, kind, metavar: str, text: str) -> None:
         full, quick = SIZES[option.removeprefix("--").replace("-", "_")]

@@ -36,7 +36,6 @@ import os
 os.environ.setdefault("XLA_FLAGS", f"--xla_force_host_platform_device_count={os.cpu_count() or 1}")
 os.environ.setdefault("JAXBAL_CACHE_DIR", "off")  # the first call compiles
 
-import argparse  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import resource  # noqa: E402
@@ -46,7 +45,7 @@ import time  # noqa: E402
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402
-from arguments import positive_float, positive_int  # noqa: E402
+from arguments import command_line, positive_float, positive_int  # noqa: E402
 from readme_block import SWEEP_LOOPS, TARGETS  # noqa: E402
 
 import jaxbal  # noqa: E402
@@ -289,11 +288,7 @@ def bench(n_designs: int, budget: int, repeats: int = 3, seed: int = 0) -> dict:
 
 
 def main():
-    parser = argparse.ArgumentParser(
-        prog="sweep_bench.py",
-        description=__doc__,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = command_line("sweep_bench.py", __doc__)
     parser.add_argument(
         "--designs",
         type=positive_int,
