@@ -119,4 +119,16 @@ def pose_motion(robot: Robot, pose, pose_d, pose_dd, *, branch=None):
 
     # one trace of the inverse kinematics (its checks included) for all three
     (q, qd), (_, qdd) = jax.jvp(velocity, (pose, pose_d), (pose_d, pose_dd))
-    return q, qd, qdd
+    return checked_rates(q, qd, qdd, pose)
+
+
+def checked_rates(q, qd, qdd, pose):
+    """``(q, q̇, q̈)``, refused where the rates are not finite: an inverse kinematics
+    solved implicitly (an MJCF robot's Newton) accepts a pose at a singular
+    configuration (an arm stretched), whose rates ``J⁻¹ u̇`` are ``inf``/NaN (they were
+    returned as such, eagerly too); eagerly a ``ValueError`` naming the pose."""
+    from jaxbal._src.solution_guard import guard_solution
+
+    singular = ~(jnp.all(jnp.isfinite(qd)) & jnp.all(jnp.isfinite(qdd)))
+    message = "pose out of reach or at a singular configuration (rates q̇, q̈ not finite)"
+    return guard_solution((q, qd, qdd), singular, message, pose)

@@ -28,7 +28,8 @@ def guard_solution(value, invalid, message: str, offending, names=None, robot=No
     of ``invalid`` is True when traced, then checked by
     :func:`~jaxbal._src.validation.guard` (eagerly a ``ValueError`` naming
     ``offending``, under ``jit`` a runtime error unless the checks are off). Gradients
-    of a valid solution are unchanged (the NaN is a constant branch).
+    of a valid solution are unchanged (the value is multiplied by exactly 1), those of
+    a failed one are NaN.
 
     ``robot``, the solver's robot: eagerly, its parameters are checked first
     (:func:`~jaxbal._src.robot_checks.checked_parameters`), so that a NaN length set
@@ -39,6 +40,9 @@ def guard_solution(value, invalid, message: str, offending, names=None, robot=No
     if robot is not None and not is_traced(value, invalid, robot):
         checked_parameters(robot, None)
     if is_traced(value, invalid):
-        failed = jnp.any(invalid)
-        value = jax.tree.map(lambda x: jnp.where(failed, jnp.nan, x), value)
+        # a product, not a select: the derivatives are NaN too (a select's derivative
+        # is 0 where it picks the constant, and under jit(jacfwd) the primal, with its
+        # runtime check, is dropped: a refused pose's Jacobian came back as zeros)
+        mask = jnp.where(jnp.any(invalid), jnp.nan, 1.0)
+        value = jax.tree.map(lambda x: x * mask.astype(jnp.result_type(x)), value)
     return guard(value, invalid, message, offending, names)

@@ -23,6 +23,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from jaxbal._src.implicit import newton_solve
+from jaxbal._src.motion import checked_rates
 from jaxbal._src.robots.mjcf_kinematics import world_frames
 from jaxbal._src.solution_guard import guard_solution
 from jaxbal._src.validation import check_shape
@@ -234,7 +235,9 @@ def pose_motion(robot, pose, pose_d, pose_dd, guess=None, *, return_valid: bool 
 
     curvature = jax.jvp(rate, (q,), (q_d,))[1]
     q_dd = jnp.linalg.solve(jacobian, jnp.concatenate([zeros, pose_dd]) - curvature)
-    return (q, q_d, q_dd, valid) if return_valid else (q, q_d, q_dd)
+    if return_valid:
+        return q, q_d, q_dd, valid & jnp.all(jnp.isfinite(q_d)) & jnp.all(jnp.isfinite(q_dd))
+    return checked_rates(q, q_d, q_dd, pose)  # a singular configuration: inf, NaN
 
 
 def inverse_kinematics(robot, pose, guess=None, *, return_valid: bool = False):
