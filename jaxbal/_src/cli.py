@@ -29,8 +29,7 @@ def reproduce(
     try:
         select(only)
     except (ValueError, FileNotFoundError) as error:
-        typer.echo(f"error: {error}", err=True)
-        raise typer.Exit(code=2) from None
+        fail(error)
     results = run_all(out, only=only, update_readme=readme)
     typer.echo(f"{len(results)} experiment(s) written to {out}/ (see {out}/REPORT.md)")
 
@@ -43,8 +42,7 @@ def list_experiments():
     try:
         experiments = discover()
     except FileNotFoundError as error:  # an install without the repository's experiments/
-        typer.echo(f"error: {error}", err=True)
-        raise typer.Exit(code=2) from None
+        fail(error)
     for experiment in experiments:
         typer.echo(f"{experiment.name:28s} {experiment.title}")
 
@@ -67,8 +65,7 @@ def export_mjcf(
     try:
         nominal = by_name(robot)
     except ValueError as error:
-        typer.echo(f"error: {error}", err=True)
-        raise typer.Exit(code=2) from None
+        fail(error)
     xml = to_xml(nominal, gravity=(0.0, 0.0, -9.81) if gravity else None, base_joints=base_joints)
     typer.echo(xml)
 

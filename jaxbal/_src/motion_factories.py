@@ -52,7 +52,7 @@ from jaxbal._src.types import Array
 from jaxbal._src.validation import checked_call, guard
 
 __all__ = [
-    "JOIN_TOLERANCE", "THETA_DOMAIN", "ComTrapezoid", "TrapezoidLine", "check_planned",
+    "JOIN_TOLERANCE", "THETA_DOMAIN", "ComTrapezoid", "TrapezoidLine", "check_planned", "in_domain",
     "check_start", "end_effector_path",
 ]  # fmt: skip
 
@@ -110,6 +110,13 @@ THETA_DOMAIN = {
 }
 
 
+def in_domain(name: str, values) -> np.ndarray:
+    """Where ``values`` of the ``θ`` entry ``name`` lie in its :data:`THETA_DOMAIN`."""
+    least, most, closed = THETA_DOMAIN[name]
+    values = np.asarray(values, dtype=float)
+    return (values > least) & ((values <= most) if closed else (values < most))
+
+
 def check_start(robot: Robot, factory, theta, lower, upper, payloads) -> None:
     """Raise ``ValueError`` if a joint co-design's start gives no motion at some payload
     (``(n,)`` [kg]) or if, for this module's factories, the bounds of ``θ`` reach out of
@@ -122,7 +129,7 @@ def check_start(robot: Robot, factory, theta, lower, upper, payloads) -> None:
             if name not in theta:
                 continue
             lo, hi = np.min(np.asarray(lower[name])), np.max(np.asarray(upper[name]))
-            if not (lo > least and (hi <= most if closed else hi < most)):
+            if not np.all(in_domain(name, [lo, hi])):
                 raise ValueError(
                     f"trajectory bounds of {name!r} must lie in its domain {least:g} < "
                     f"{name} {'<=' if closed else '<'} {most:g}, got [{lo:g}, {hi:g}]"

@@ -31,7 +31,6 @@ __all__ = [
     "check_payload_axis",
     "check_shapes",
     "check_trajectory_domain",
-    "in_domain",
     "trajectory_shapes",
     "trajectory_values",
 ]
@@ -58,16 +57,6 @@ def check_bounds(axes: dict, robot, plan) -> None:
                 )
 
 
-def in_domain(name: str, values) -> np.ndarray:
-    """Where ``values`` of the trajectory variable ``name`` lie in its domain
-    (:data:`~jaxbal._src.motion_factories.THETA_DOMAIN`, e.g. ``0 < ratio ≤ 1``)."""
-    from jaxbal._src.motion_factories import THETA_DOMAIN
-
-    least, most, closed = THETA_DOMAIN[name]
-    values = np.asarray(values, dtype=float)
-    return (values > least) & ((values <= most) if closed else (values < most))
-
-
 def check_trajectory_domain(axes: dict, motion, theta: dict) -> None:
     """Refuse, before anything compiles or a store is created, switch times of a
     trapezoid factory (:class:`~jaxbal.design.TrapezoidLine`, ``ComTrapezoid``) swept
@@ -78,7 +67,7 @@ def check_trajectory_domain(axes: dict, motion, theta: dict) -> None:
     Raises:
         ValueError: naming the axis (or ``trajectory=``), the variable and the value.
     """
-    from jaxbal._src.motion_factories import THETA_DOMAIN, ComTrapezoid, TrapezoidLine
+    from jaxbal._src.motion_factories import THETA_DOMAIN, ComTrapezoid, TrapezoidLine, in_domain
 
     if not isinstance(motion, TrapezoidLine | ComTrapezoid):
         return

@@ -211,8 +211,7 @@ def _motion(robot, table: dict):
 def _switch(table: dict, key: str, default: float) -> float:
     """Switch-time variable ``u2`` (``0 < u2 < 1/2``) or ``ratio = u1/u2`` (``0 < ratio
     ≤ 1``) of a trapezoid (:data:`~jaxbal._src.motion_factories.THETA_DOMAIN`)."""
-    from jaxbal._src.motion_factories import THETA_DOMAIN
-    from jaxbal._src.sweep_inputs import in_domain
+    from jaxbal._src.motion_factories import THETA_DOMAIN, in_domain
 
     least, most, closed = THETA_DOMAIN[key]
     what = f"a number > {least:g} and {'≤' if closed else '<'} {most:g}"
